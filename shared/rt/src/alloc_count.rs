@@ -64,12 +64,7 @@ impl AllocStats {
     /// Snapshot of this thread's counters (only meaningful with [`CountingAlloc`] installed).
     pub fn now() -> Self {
         let g = |c: &'static std::thread::LocalKey<Cell<u64>>| c.try_with(|v| v.get()).unwrap_or(0);
-        AllocStats {
-            allocs: g(&ALLOCS),
-            deallocs: g(&DEALLOCS),
-            reallocs: g(&REALLOCS),
-            bytes: g(&BYTES),
-        }
+        AllocStats { allocs: g(&ALLOCS), deallocs: g(&DEALLOCS), reallocs: g(&REALLOCS), bytes: g(&BYTES) }
     }
     /// Counters accumulated since `earlier`.
     pub fn since(earlier: AllocStats) -> Self {
