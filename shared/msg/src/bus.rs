@@ -1,0 +1,279 @@
+//! iceoryx2 wiring shared by every process: per-run isolation, one service
+//! per payload type with identical QoS everywhere, and thin publisher /
+//! subscriber wrappers that stamp headers and validate what arrives.
+//!
+//! Isolation: every run has a run id; all iceoryx2 resources of a run carry
+//! the file prefix `dkrrt_<run>_`, so two runs on one machine never see each
+//! other (nodes, services and shared memory are all distinct).
+
+use core::fmt::Debug;
+use core::mem::MaybeUninit;
+
+use iceoryx2::config::Config;
+use iceoryx2::node::{Node, NodeBuilder, NodeState, NodeView};
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::prelude::{
+    ipc, CallbackProgression, FileName, NodeName, SemanticString, ServiceName, SignalHandlingMode,
+    ZeroCopySend,
+};
+
+use crate::types::*;
+use crate::validate::{ContractLimits, Validate, ValidationError};
+
+/// An error while setting up or using the bus; says what was attempted.
+#[derive(Debug, thiserror::Error)]
+#[error("{what}: {detail}")]
+pub struct BusError {
+    pub what: String,
+    pub detail: String,
+}
+
+fn err(what: impl Into<String>, detail: impl Debug) -> BusError {
+    BusError { what: what.into(), detail: format!("{detail:?}") }
+}
+
+/// A payload type of the contract, with the one service that carries it.
+pub trait Topic: Debug + Copy + ZeroCopySend + Validate + Zeroed + 'static {
+    /// iceoryx2 service name.
+    const SERVICE: &'static str;
+    fn header(&self) -> &Header;
+    fn header_mut(&mut self) -> &mut Header;
+}
+
+macro_rules! topic {
+    ($t:ty, $name:expr) => {
+        impl Topic for $t {
+            const SERVICE: &'static str = $name;
+            fn header(&self) -> &Header {
+                &self.header
+            }
+            fn header_mut(&mut self) -> &mut Header {
+                &mut self.header
+            }
+        }
+    };
+}
+topic!(RobotState, "dkrrt/robot_state");
+topic!(TorqueCommand, "dkrrt/torque_command");
+topic!(Trajectory, "dkrrt/trajectory");
+topic!(Goal, "dkrrt/goal");
+topic!(Heartbeat, "dkrrt/health");
+topic!(DebrisObservation, "dkrrt/debris_observation");
+topic!(DebrisForecast, "dkrrt/debris_forecast");
+
+/// QoS shared by all services (open_or_create needs the same values everywhere).
+pub const MAX_PUBLISHERS: usize = 8;
+pub const MAX_SUBSCRIBERS: usize = 8;
+pub const MAX_NODES: usize = 16;
+/// Samples a subscriber buffers; on overflow the oldest is dropped (we poll the latest).
+pub const SUBSCRIBER_BUFFER: usize = 4;
+/// Late subscribers receive the last sample (the active trajectory or goal).
+pub const HISTORY: usize = 1;
+
+/// The iceoryx2 config of run `run`: its own file prefix.
+pub fn run_config(run: &str) -> Result<Config, BusError> {
+    if run.is_empty() || !run.chars().all(|c| c.is_ascii_alphanumeric() || c == '-') {
+        return Err(err("run id", format!("{run:?}: use letters, digits and '-'")));
+    }
+    let mut cfg = Config::default();
+    let prefix = format!("dkrrt_{run}_");
+    cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| err("run prefix", e))?;
+    Ok(cfg)
+}
+
+/// A process's node on the bus of one run.
+pub struct Bus {
+    pub node: Node<ipc::Service>,
+    pub run: String,
+    cfg: Config,
+}
+
+impl Bus {
+    /// Creates the node `name` for run `run`. Signal handling is left to the
+    /// process (see `dkrrt_rt::signals`).
+    pub fn new(run: &str, name: &str) -> Result<Bus, BusError> {
+        let cfg = run_config(run)?;
+        let node_name = NodeName::new(name).map_err(|e| err("node name", e))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| err(format!("create node {name} for run {run}"), e))?;
+        Ok(Bus { node, run: run.to_string(), cfg })
+    }
+
+    fn service<T: Topic>(
+        &self,
+    ) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, T, ()>, BusError>
+    {
+        let name = ServiceName::new(T::SERVICE).map_err(|e| err("service name", e))?;
+        self.node
+            .service_builder(&name)
+            .publish_subscribe::<T>()
+            .max_publishers(MAX_PUBLISHERS)
+            .max_subscribers(MAX_SUBSCRIBERS)
+            .max_nodes(MAX_NODES)
+            .history_size(HISTORY)
+            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(|e| err(format!("open service {}", T::SERVICE), e))
+    }
+
+    pub fn publisher<T: Topic>(&self, source: Source) -> Result<Pub<T>, BusError> {
+        let port = self
+            .service::<T>()?
+            .publisher_builder()
+            .create()
+            .map_err(|e| err(format!("publisher on {}", T::SERVICE), e))?;
+        Ok(Pub { port, seq: 0, source })
+    }
+
+    pub fn subscriber<T: Topic>(&self) -> Result<Sub<T>, BusError> {
+        let port = self
+            .service::<T>()?
+            .subscriber_builder()
+            .buffer_size(SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| err(format!("subscriber on {}", T::SERVICE), e))?;
+        Ok(Sub { port, received: 0, rejected: 0, last_error: None })
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.cfg
+    }
+
+    /// Names of the live nodes of this run, and how many dead ones were found.
+    pub fn nodes(cfg: &Config) -> Result<(Vec<(String, u32)>, usize), BusError> {
+        let mut alive = Vec::new();
+        let mut dead = 0;
+        Node::<ipc::Service>::list(cfg, |state| {
+            match &state {
+                NodeState::Alive(v) => {
+                    if let Some(d) = v.details() {
+                        alive.push((d.name().as_str().to_string(), d.process_id().value() as u32));
+                    }
+                }
+                NodeState::Dead(_) => dead += 1,
+                _ => {}
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| err("list nodes", e))?;
+        Ok((alive, dead))
+    }
+
+    /// Removes the stale resources of dead nodes of the run `cfg` (crashed
+    /// processes of earlier runs). Returns how many were cleaned.
+    pub fn remove_stale(cfg: &Config) -> Result<usize, BusError> {
+        let mut cleaned = 0;
+        Node::<ipc::Service>::list(cfg, |state| {
+            if let NodeState::Dead(view) = state {
+                if view.try_remove_stale_resources().is_ok() {
+                    cleaned += 1;
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(|e| err("list nodes", e))?;
+        Ok(cleaned)
+    }
+}
+
+/// Publisher of one topic: stamps `seq`, `source` and `mono_ns` into the header.
+pub struct Pub<T: Topic> {
+    port: Publisher<ipc::Service, T, ()>,
+    seq: u64,
+    source: Source,
+}
+
+impl<T: Topic> Pub<T> {
+    /// Publishes `msg` (header `seq`, `source`, `mono_ns` are filled in here;
+    /// `stamp_ns` and `flags` are the caller's). The payload is copied once
+    /// into the loaned shared-memory sample. iceoryx2 0.10 allocates one small
+    /// block per loan and frees it on send (counted in the allocation tests).
+    pub fn publish(&mut self, msg: &mut T) -> Result<u64, BusError> {
+        let h = msg.header_mut();
+        h.seq = self.seq;
+        h.source = self.source as u32;
+        h.mono_ns = dkrrt_rt::clock::mono_ns();
+        let mut sample = self.port.loan_uninit().map_err(|e| err(format!("loan on {}", T::SERVICE), e))?;
+        let slot: &mut MaybeUninit<T> = sample.payload_mut();
+        // SAFETY: `slot` is a properly aligned, writable place for one T; T is Copy.
+        unsafe { core::ptr::copy_nonoverlapping(msg as *const T, slot.as_mut_ptr(), 1) };
+        // SAFETY: fully initialized just above.
+        let sample = unsafe { sample.assume_init() };
+        sample.send().map_err(|e| err(format!("send on {}", T::SERVICE), e))?;
+        self.seq += 1;
+        Ok(self.seq - 1)
+    }
+
+    /// Connects to subscribers that appeared since the last send.
+    pub fn update_connections(&self) -> Result<(), BusError> {
+        self.port.update_connections().map_err(|e| err(format!("update connections {}", T::SERVICE), e))
+    }
+
+    pub fn next_seq(&self) -> u64 {
+        self.seq
+    }
+}
+
+/// Subscriber of one topic that validates every sample and counts rejects.
+pub struct Sub<T: Topic> {
+    port: Subscriber<ipc::Service, T, ()>,
+    /// Samples received (valid or not).
+    pub received: u64,
+    /// Samples rejected by validation.
+    pub rejected: u64,
+    /// The most recent validation failure.
+    pub last_error: Option<ValidationError>,
+}
+
+impl<T: Topic> Sub<T> {
+    /// Drains the queue; copies the newest *valid* sample into `out` and
+    /// returns true if there was one. Invalid samples are counted and dropped.
+    pub fn latest(&mut self, out: &mut T, lim: &ContractLimits) -> Result<bool, BusError> {
+        let mut got = false;
+        loop {
+            let sample = self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?;
+            let Some(sample) = sample else { break };
+            self.received += 1;
+            let msg: &T = sample.payload();
+            match msg.validate(lim) {
+                Ok(()) => {
+                    *out = *msg;
+                    got = true;
+                }
+                Err(e) => {
+                    self.rejected += 1;
+                    self.last_error = Some(e);
+                }
+            }
+        }
+        Ok(got)
+    }
+
+    /// Like [`Sub::latest`] but calls `f` for every valid sample in order.
+    pub fn for_each(&mut self, lim: &ContractLimits, mut f: impl FnMut(&T)) -> Result<usize, BusError> {
+        let mut n = 0;
+        while let Some(sample) =
+            self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?
+        {
+            self.received += 1;
+            match sample.payload().validate(lim) {
+                Ok(()) => {
+                    f(sample.payload());
+                    n += 1;
+                }
+                Err(e) => {
+                    self.rejected += 1;
+                    self.last_error = Some(e);
+                }
+            }
+        }
+        Ok(n)
+    }
+}

@@ -1,0 +1,332 @@
+//! The payload types. Every type is `#[repr(C)]`, `Copy`, pointer-free and
+//! `ZeroCopySend`, so it can live in iceoryx2 shared memory. Sizes and
+//! alignments are checked at compile time at the bottom of this file; a change
+//! of layout must bump the `type_name` version so old and new processes refuse
+//! to connect instead of misreading each other.
+
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Number of actuated joints of the arm.
+pub const NJ: usize = 6;
+/// Piecewise-constant-jerk segments per joint a trajectory message can carry.
+pub const MAX_SEGMENTS: usize = 64;
+/// Debris objects an observation or forecast message can carry.
+pub const MAX_DEBRIS: usize = 32;
+/// Forecast steps per debris object.
+pub const FORECAST_STEPS: usize = 40;
+
+/// Common header of every payload.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+pub struct Header {
+    /// Per-publisher sequence number, starting at 0, +1 per message.
+    pub seq: u64,
+    /// Plant-clock time in ns (the simulator's or driver's time of the data).
+    pub stamp_ns: u64,
+    /// CLOCK_MONOTONIC time in ns at which the message was published
+    /// (for latency measurement across processes on one machine).
+    pub mono_ns: u64,
+    /// Who published it: a [`Source`] value.
+    pub source: u32,
+    /// Bit flags; meaning per message type (see the `FLAG_*` constants).
+    pub flags: u32,
+}
+
+impl Header {
+    pub const fn new(source: Source) -> Self {
+        Header { seq: 0, stamp_ns: 0, mono_ns: 0, source: source as u32, flags: 0 }
+    }
+}
+
+/// Publisher identities carried in [`Header::source`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Source {
+    Sim = 1,
+    Tracker = 2,
+    TrajectorySource = 3,
+    Planner = 4,
+    Predictor = 5,
+    Launcher = 6,
+    /// A real arm driver taking the simulator's place.
+    Driver = 7,
+}
+
+impl Source {
+    pub fn from_u32(v: u32) -> Option<Source> {
+        Some(match v {
+            1 => Source::Sim,
+            2 => Source::Tracker,
+            3 => Source::TrajectorySource,
+            4 => Source::Planner,
+            5 => Source::Predictor,
+            6 => Source::Launcher,
+            7 => Source::Driver,
+            _ => return None,
+        })
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Source::Sim => "sim",
+            Source::Tracker => "tracker",
+            Source::TrajectorySource => "goto",
+            Source::Planner => "planner",
+            Source::Predictor => "predictor",
+            Source::Launcher => "launcher",
+            Source::Driver => "driver",
+        }
+    }
+}
+
+/// [`RobotState`] flag: the plant ends the run after this state; consumers finish cleanly.
+pub const FLAG_END_OF_RUN: u32 = 1;
+/// [`RobotState`] flag: the plant's own watchdog has engaged the joint brakes
+/// (no valid torque command for too long).
+pub const FLAG_BRAKE_ENGAGED: u32 = 2;
+
+/// Measured joint state of the arm, published by the plant (sim or driver) every tick (1 kHz).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::RobotState/1")]
+pub struct RobotState {
+    pub header: Header,
+    /// Joint positions, rad.
+    pub q: [f64; NJ],
+    /// Joint velocities, rad/s.
+    pub qd: [f64; NJ],
+    /// Torque actually applied over the last tick (after saturation), N·m.
+    pub tau: [f64; NJ],
+}
+
+/// Controller mode carried by a [`TorqueCommand`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ControllerMode {
+    /// No trajectory yet: holding the first measured position.
+    Idle = 0,
+    /// Tracking the active trajectory.
+    Track = 1,
+    /// Safe hold, phase 1: decelerating to rest within the limits.
+    Brake = 2,
+    /// Safe hold, phase 2 (or trajectory finished): holding position.
+    Hold = 3,
+}
+
+impl ControllerMode {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Some(match v {
+            0 => ControllerMode::Idle,
+            1 => ControllerMode::Track,
+            2 => ControllerMode::Brake,
+            3 => ControllerMode::Hold,
+            _ => return None,
+        })
+    }
+}
+
+/// Joint torque command, published by the tracker once per received state (1 kHz).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::TorqueCommand/1")]
+pub struct TorqueCommand {
+    pub header: Header,
+    /// Commanded joint torques, N·m.
+    pub tau: [f64; NJ],
+    /// `header.seq` of the [`RobotState`] this command answers.
+    pub state_seq: u64,
+    /// A [`ControllerMode`] value.
+    pub mode: u32,
+    /// Id of the trajectory being tracked (0: none).
+    pub traj_id: u32,
+}
+
+/// One segment of constant jerk for one joint. It starts at `t0` (s, relative
+/// to the trajectory start) in state (`p`, `v`, `a`) and lasts until the next
+/// segment's `t0` (or the trajectory's duration for the last one).
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct JerkSegment {
+    pub t0: f64,
+    pub p: f64,
+    pub v: f64,
+    pub a: f64,
+    pub j: f64,
+}
+
+/// A joint trajectory as per-joint piecewise-constant-jerk segments: what the
+/// tracker samples each tick. Published on change by the trajectory source or planner.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::Trajectory/1")]
+pub struct Trajectory {
+    pub header: Header,
+    /// Unique non-zero id per trajectory from one publisher.
+    pub traj_id: u64,
+    /// Plant-clock time (ns) at which trajectory time 0 happens.
+    pub start_ns: u64,
+    /// Duration in seconds; after it the final state is held.
+    pub duration_s: f64,
+    /// Segments used per joint (1..=MAX_SEGMENTS).
+    pub n_seg: [u32; NJ],
+    pub seg: [[JerkSegment; MAX_SEGMENTS]; NJ],
+}
+
+/// Joint-space goal for the trajectory source / planner.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::Goal/1")]
+pub struct Goal {
+    pub header: Header,
+    pub goal_id: u64,
+    /// Target joint positions, rad.
+    pub q: [f64; NJ],
+}
+
+/// Life-cycle state reported in a [`Heartbeat`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ProcessState {
+    Starting = 0,
+    Running = 1,
+    SafeHold = 2,
+    Stopping = 3,
+    Fault = 4,
+}
+
+impl ProcessState {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Some(match v {
+            0 => ProcessState::Starting,
+            1 => ProcessState::Running,
+            2 => ProcessState::SafeHold,
+            3 => ProcessState::Stopping,
+            4 => ProcessState::Fault,
+            _ => return None,
+        })
+    }
+}
+
+/// Health and liveness of one process, published at 10 Hz by every process.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::Heartbeat/1")]
+pub struct Heartbeat {
+    pub header: Header,
+    /// A [`ProcessState`] value.
+    pub state: u32,
+    pub _reserved: u32,
+    /// Loop iterations so far.
+    pub ticks: u64,
+    /// Deadlines missed so far.
+    pub deadline_misses: u64,
+    /// Incoming messages rejected by validation so far.
+    pub rejected: u64,
+    /// Times the process entered a safe state so far.
+    pub safe_hold_entries: u64,
+}
+
+/// [`DebrisObs`] flag: `v` and `w` hold measured velocities.
+pub const DEBRIS_HAS_VELOCITY: u32 = 1;
+
+/// One observed debris object.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct DebrisObs {
+    pub id: u32,
+    pub flags: u32,
+    /// Plant-clock time of the measurement, ns (observations may arrive late).
+    pub t_meas_ns: u64,
+    /// Position in the arm base frame, m.
+    pub p: [f64; 3],
+    /// Attitude quaternion (w, x, y, z), unit norm.
+    pub q: [f64; 4],
+    /// Linear velocity, m/s (valid with [`DEBRIS_HAS_VELOCITY`]).
+    pub v: [f64; 3],
+    /// Angular velocity in the body frame, rad/s (valid with [`DEBRIS_HAS_VELOCITY`]).
+    pub w: [f64; 3],
+    /// Radius of a sphere around the body origin enclosing its shape, m.
+    pub bounding_radius: f64,
+}
+
+/// Debris observations of one sensor frame (30–100 Hz).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::DebrisObservation/1")]
+pub struct DebrisObservation {
+    pub header: Header,
+    pub count: u32,
+    pub _reserved: u32,
+    pub items: [DebrisObs; MAX_DEBRIS],
+}
+
+/// One predicted pose with its uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct ForecastStep {
+    pub p: [f64; 3],
+    /// (w, x, y, z), unit norm.
+    pub q: [f64; 4],
+    /// Position error bound at this horizon, m (inflate the shape by it).
+    pub sigma_m: f64,
+}
+
+/// The forecast of one debris object.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+pub struct ForecastTrack {
+    pub id: u32,
+    pub _reserved: u32,
+    pub bounding_radius: f64,
+    pub steps: [ForecastStep; FORECAST_STEPS],
+}
+
+/// Time-indexed debris forecast (≥ 50 Hz): step `k` of every track is the
+/// prediction for plant time `t0_ns + (k + 1) · dt_s`.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::DebrisForecast/1")]
+pub struct DebrisForecast {
+    pub header: Header,
+    pub count: u32,
+    /// Steps used per track (1..=FORECAST_STEPS).
+    pub steps: u32,
+    pub dt_s: f64,
+    pub t0_ns: u64,
+    pub tracks: [ForecastTrack; MAX_DEBRIS],
+}
+
+/// All-zero value of a payload (every payload is plain numbers, so all-zero
+/// bytes are a valid value). Large payloads are built in place from this.
+pub trait Zeroed: Sized + Copy {
+    fn zeroed() -> Self {
+        // SAFETY: implemented only for the repr(C) payloads of this module,
+        // whose fields are all integers and floats (valid for all-zero bytes).
+        unsafe { core::mem::zeroed() }
+    }
+}
+impl Zeroed for RobotState {}
+impl Zeroed for TorqueCommand {}
+impl Zeroed for Trajectory {}
+impl Zeroed for Goal {}
+impl Zeroed for Heartbeat {}
+impl Zeroed for DebrisObservation {}
+impl Zeroed for DebrisForecast {}
+
+// Compile-time layout checks: a failing assert here means the wire layout changed.
+const _: () = {
+    use core::mem::{align_of, size_of};
+    assert!(size_of::<Header>() == 32 && align_of::<Header>() == 8);
+    assert!(size_of::<RobotState>() == 32 + 3 * 8 * NJ);
+    assert!(size_of::<TorqueCommand>() == 32 + 8 * NJ + 16);
+    assert!(size_of::<JerkSegment>() == 40);
+    assert!(size_of::<Trajectory>() == 32 + 24 + 4 * NJ + 40 * MAX_SEGMENTS * NJ);
+    assert!(size_of::<Goal>() == 32 + 8 + 8 * NJ);
+    assert!(size_of::<Heartbeat>() == 32 + 8 + 32);
+    assert!(size_of::<DebrisObs>() == 128);
+    assert!(size_of::<DebrisObservation>() == 32 + 8 + 128 * MAX_DEBRIS);
+    assert!(size_of::<ForecastStep>() == 64);
+    assert!(size_of::<ForecastTrack>() == 16 + 64 * FORECAST_STEPS);
+    assert!(size_of::<DebrisForecast>() == 32 + 24 + (16 + 64 * FORECAST_STEPS) * MAX_DEBRIS);
+    assert!(align_of::<RobotState>() == 8 && align_of::<TorqueCommand>() == 8);
+    assert!(align_of::<Trajectory>() == 8 && align_of::<DebrisForecast>() == 8);
+};

@@ -1,0 +1,107 @@
+//! Real iceoryx2 round trips through the contract's bus wrappers.
+
+use dkrrt_msg::bus::{run_config, Bus};
+use dkrrt_msg::*;
+
+fn run_id(tag: &str) -> String {
+    format!("t{}-{tag}-{}", std::process::id(), dkrrt_rt::clock::mono_ns() % 1_000_000_000)
+}
+
+fn lim() -> ContractLimits {
+    ContractLimits::symmetric(3.0, 2.0, 100.0)
+}
+
+fn state(q0: f64) -> RobotState {
+    let mut s = <RobotState as Zeroed>::zeroed();
+    s.q[0] = q0;
+    s.header.stamp_ns = 42;
+    s
+}
+
+#[test]
+fn state_round_trip_stamps_header_and_validates() {
+    let run = run_id("rt");
+    let a = Bus::new(&run, "a").unwrap();
+    let b = Bus::new(&run, "b").unwrap();
+    let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
+    let mut s = b.subscriber::<RobotState>().unwrap();
+    p.update_connections().unwrap();
+
+    p.publish(&mut state(0.5)).unwrap();
+    let mut bad = state(f64::NAN);
+    p.publish(&mut bad).unwrap();
+    let mut out_of_range = state(10.0);
+    p.publish(&mut out_of_range).unwrap();
+
+    let mut got = <RobotState as Zeroed>::zeroed();
+    assert!(s.latest(&mut got, &lim()).unwrap());
+    assert_eq!(got.q[0], 0.5);
+    assert_eq!(got.header.seq, 0);
+    assert_eq!(got.header.stamp_ns, 42);
+    assert_eq!(got.header.source, Source::Sim as u32);
+    assert!(got.header.mono_ns > 0);
+    assert_eq!(s.received, 3);
+    assert_eq!(s.rejected, 2);
+    assert!(matches!(s.last_error, Some(ValidationError::OutOfRange { field: "q", index: 0, .. })));
+    // Nothing more queued.
+    assert!(!s.latest(&mut got, &lim()).unwrap());
+}
+
+#[test]
+fn latest_keeps_only_the_newest_sample() {
+    let run = run_id("latest");
+    let a = Bus::new(&run, "a").unwrap();
+    let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
+    let mut s = a.subscriber::<RobotState>().unwrap();
+    p.update_connections().unwrap();
+    for i in 0..10 {
+        p.publish(&mut state(i as f64 * 0.1)).unwrap();
+    }
+    let mut got = <RobotState as Zeroed>::zeroed();
+    assert!(s.latest(&mut got, &lim()).unwrap());
+    assert_eq!(got.header.seq, 9);
+    assert!((got.q[0] - 0.9).abs() < 1e-12);
+}
+
+#[test]
+fn late_subscriber_gets_the_last_trajectory() {
+    let run = run_id("hist");
+    let a = Bus::new(&run, "a").unwrap();
+    let mut p = a.publisher::<Trajectory>(Source::TrajectorySource).unwrap();
+    let mut t = Trajectory::hold(&[0.25; NJ]);
+    t.traj_id = 7;
+    p.publish(&mut t).unwrap();
+    let b = Bus::new(&run, "b").unwrap();
+    let mut s = b.subscriber::<Trajectory>().unwrap();
+    p.update_connections().unwrap();
+    let mut got = Trajectory::hold(&[0.0; NJ]);
+    assert!(s.latest(&mut got, &lim()).unwrap());
+    assert_eq!(got.traj_id, 7);
+    assert_eq!(got.sample(1.0).p, [0.25; NJ]);
+}
+
+#[test]
+fn two_runs_never_see_each_other() {
+    let r1 = run_id("iso1");
+    let r2 = run_id("iso2");
+    let a = Bus::new(&r1, "a").unwrap();
+    let b = Bus::new(&r2, "b").unwrap();
+    let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
+    let mut s = b.subscriber::<RobotState>().unwrap();
+    p.update_connections().unwrap();
+    p.publish(&mut state(0.1)).unwrap();
+    let mut got = <RobotState as Zeroed>::zeroed();
+    assert!(!s.latest(&mut got, &lim()).unwrap());
+    assert_eq!(s.received, 0);
+    // Node listing is per run too.
+    let (alive, _) = Bus::nodes(&run_config(&r1).unwrap()).unwrap();
+    let names: Vec<_> = alive.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, vec!["a"]);
+}
+
+#[test]
+fn bad_run_ids_are_refused_with_a_reason() {
+    let e = run_config("has space").unwrap_err();
+    assert!(e.to_string().contains("run id"), "{e}");
+    assert!(run_config("").is_err());
+}

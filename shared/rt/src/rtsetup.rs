@@ -1,0 +1,70 @@
+//! Optional real-time setup: SCHED_FIFO priority, mlockall, CPU pinning.
+//! Each step falls back with a warning where the system does not permit it.
+
+/// What to ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RtOptions {
+    /// SCHED_FIFO priority 1..=99; 0 keeps the normal scheduler.
+    pub fifo_priority: u32,
+    /// Lock current and future memory (no page faults in the loop).
+    pub mlockall: bool,
+    /// Pin the calling thread to this CPU.
+    pub cpu: Option<usize>,
+}
+
+/// What was granted; `warnings` says what fell back and why.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct RtReport {
+    pub fifo: bool,
+    pub mlockall: bool,
+    pub pinned_cpu: Option<usize>,
+    pub warnings: Vec<String>,
+}
+
+fn os_err() -> String {
+    std::io::Error::last_os_error().to_string()
+}
+
+/// Applies `opt` to the calling thread/process.
+pub fn apply(opt: &RtOptions) -> RtReport {
+    let mut r = RtReport::default();
+    if opt.mlockall {
+        // SAFETY: plain syscall.
+        if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+            r.mlockall = true;
+        } else {
+            r.warnings.push(format!("mlockall not permitted ({}); continuing unlocked", os_err()));
+        }
+    }
+    if opt.fifo_priority > 0 {
+        let p = libc::sched_param { sched_priority: opt.fifo_priority.min(99) as i32 };
+        // SAFETY: valid sched_param; 0 = calling thread.
+        if unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &p) } == 0 {
+            r.fifo = true;
+        } else {
+            r.warnings.push(format!(
+                "SCHED_FIFO priority {} not permitted ({}); using the normal scheduler",
+                opt.fifo_priority,
+                os_err()
+            ));
+        }
+    }
+    if let Some(cpu) = opt.cpu {
+        // SAFETY: cpu_set_t is plain data; CPU_SET bounds-checks against its size.
+        unsafe {
+            let mut set: libc::cpu_set_t = core::mem::zeroed();
+            let ncpu = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+            if cpu < ncpu {
+                libc::CPU_SET(cpu, &mut set);
+                if libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set) == 0 {
+                    r.pinned_cpu = Some(cpu);
+                } else {
+                    r.warnings.push(format!("pinning to CPU {cpu} failed ({}); not pinned", os_err()));
+                }
+            } else {
+                r.warnings.push(format!("CPU {cpu} does not exist (machine has {ncpu}); not pinned"));
+            }
+        }
+    }
+    r
+}
