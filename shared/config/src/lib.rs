@@ -1,1 +1,360 @@
-//! dkrrt-config
+//! dkrrt-config: the scenario file.
+//!
+//! One TOML file configures a run: robot, rates, motion limits, tracker gains,
+//! plant options, goal. Unknown keys are refused; every semantic error names
+//! the field and the value (e.g. `tracker.kp[2] = -1: must be > 0`). A default
+//! scenario is embedded, so `dkrrt launch` needs no argument.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// Joint count of the configured arm.
+pub const NJ: usize = 6;
+
+/// The embedded default scenario (shared/config/scenarios/default.toml).
+pub const DEFAULT_SCENARIO: &str = include_str!("../scenarios/default.toml");
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read scenario {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("scenario {origin}: {message}")]
+    Parse { origin: String, message: String },
+    #[error("scenario {origin}: {field} = {value}: {reason}")]
+    Invalid { origin: String, field: String, value: String, reason: String },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mode {
+    Realtime,
+    Lockstep,
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "realtime" => Ok(Mode::Realtime),
+            "lockstep" => Ok(Mode::Lockstep),
+            _ => Err(format!("unknown mode {s:?} (realtime | lockstep)")),
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    pub name: String,
+    pub robot: RobotCfg,
+    pub run: RunCfg,
+    pub motion: MotionCfg,
+    pub tracker: TrackerCfg,
+    pub sim: SimCfg,
+    pub goal: GoalCfg,
+    /// Directory relative paths are resolved against (not in the file).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotCfg {
+    pub urdf: String,
+    pub gravity: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunCfg {
+    pub mode: Mode,
+    pub duration_s: f64,
+    pub control_hz: f64,
+    pub heartbeat_hz: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionCfg {
+    pub v_max: [f64; NJ],
+    pub a_max: [f64; NJ],
+    pub j_max: [f64; NJ],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrackerCfg {
+    pub kp: [f64; NJ],
+    pub kd: [f64; NJ],
+    pub stale_ticks: u32,
+    pub phase_us: u64,
+    pub state_wait_us: u64,
+    pub predict: bool,
+    pub fifo_priority: u32,
+    pub mlockall: bool,
+    pub cpu: i32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimCfg {
+    pub initial_q: [f64; NJ],
+    pub substeps: u32,
+    pub noise_q_std: f64,
+    pub noise_qd_std: f64,
+    pub delay_ticks: u32,
+    pub command_timeout_ticks: u32,
+    pub brake_damping: f64,
+    pub seed: u64,
+    pub fifo_priority: u32,
+    pub mlockall: bool,
+    pub cpu: i32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalCfg {
+    pub q: [f64; NJ],
+}
+
+/// Joint limits of the arm the scenario is checked against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmLimits {
+    pub q_min: [f64; NJ],
+    pub q_max: [f64; NJ],
+    pub v_max: [f64; NJ],
+    pub tau_max: [f64; NJ],
+}
+
+struct Checker<'a> {
+    origin: &'a str,
+}
+
+impl Checker<'_> {
+    fn fail(&self, field: impl Into<String>, value: impl ToString, reason: impl Into<String>) -> ConfigError {
+        ConfigError::Invalid {
+            origin: self.origin.to_string(),
+            field: field.into(),
+            value: value.to_string(),
+            reason: reason.into(),
+        }
+    }
+    fn positive(&self, field: &str, v: f64) -> Result<(), ConfigError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(self.fail(field, v, "must be a finite number > 0"))
+        }
+    }
+    fn non_negative(&self, field: &str, v: f64) -> Result<(), ConfigError> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(())
+        } else {
+            Err(self.fail(field, v, "must be a finite number >= 0"))
+        }
+    }
+    fn all_positive(&self, field: &str, v: &[f64; NJ]) -> Result<(), ConfigError> {
+        for (i, x) in v.iter().enumerate() {
+            self.positive(&format!("{field}[{i}]"), *x)?;
+        }
+        Ok(())
+    }
+    fn within(&self, field: &str, v: &[f64; NJ], lo: &[f64; NJ], hi: &[f64; NJ]) -> Result<(), ConfigError> {
+        for i in 0..NJ {
+            if !(v[i].is_finite() && lo[i] <= v[i] && v[i] <= hi[i]) {
+                return Err(self.fail(
+                    format!("{field}[{i}]"),
+                    v[i],
+                    format!("must lie within the joint limits [{}, {}]", lo[i], hi[i]),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Scenario {
+    /// The embedded default scenario.
+    pub fn default_scenario() -> Scenario {
+        Scenario::from_toml_str(DEFAULT_SCENARIO, "<embedded default>")
+            .expect("the embedded default scenario parses")
+    }
+
+    /// Parses a scenario; `origin` names it in errors.
+    pub fn from_toml_str(s: &str, origin: &str) -> Result<Scenario, ConfigError> {
+        toml::from_str(s).map_err(|e| ConfigError::Parse {
+            origin: origin.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })
+    }
+
+    /// Loads a scenario file (`"default"` means the embedded one).
+    pub fn load(path: &str) -> Result<Scenario, ConfigError> {
+        if path == "default" {
+            return Ok(Self::default_scenario());
+        }
+        let p = Path::new(path);
+        let text =
+            std::fs::read_to_string(p).map_err(|source| ConfigError::Io { path: p.to_path_buf(), source })?;
+        let mut sc = Self::from_toml_str(&text, path)?;
+        sc.base_dir = p.parent().map(|d| d.to_path_buf());
+        Ok(sc)
+    }
+
+    /// Serializes the scenario (to hand the exact same one to every process).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("a scenario always serializes")
+    }
+
+    /// The URDF path to load, resolved against the scenario's directory;
+    /// `None` for the embedded default arm.
+    pub fn urdf_path(&self) -> Option<PathBuf> {
+        if self.robot.urdf.is_empty() {
+            return None;
+        }
+        let p = PathBuf::from(&self.robot.urdf);
+        Some(match (&self.base_dir, p.is_relative()) {
+            (Some(dir), true) => dir.join(p),
+            _ => p,
+        })
+    }
+
+    /// Control period in ns.
+    pub fn period_ns(&self) -> u64 {
+        (1e9 / self.run.control_hz).round() as u64
+    }
+
+    /// Plant ticks in the run.
+    pub fn ticks(&self) -> u64 {
+        (self.run.duration_s * self.run.control_hz).round() as u64
+    }
+
+    /// Checks values and cross-field rules against the arm's limits. The
+    /// error names the field, its value and the rule.
+    pub fn validate(&self, arm: &ArmLimits) -> Result<(), ConfigError> {
+        let c = Checker { origin: &self.name };
+        for (i, g) in self.robot.gravity.iter().enumerate() {
+            if !g.is_finite() {
+                return Err(c.fail(format!("robot.gravity[{i}]"), g, "must be finite"));
+            }
+        }
+        c.positive("run.duration_s", self.run.duration_s)?;
+        c.positive("run.control_hz", self.run.control_hz)?;
+        if !(10.0..=20_000.0).contains(&self.run.control_hz) {
+            return Err(c.fail("run.control_hz", self.run.control_hz, "must be within [10, 20000] Hz"));
+        }
+        c.positive("run.heartbeat_hz", self.run.heartbeat_hz)?;
+        c.all_positive("motion.v_max", &self.motion.v_max)?;
+        c.all_positive("motion.a_max", &self.motion.a_max)?;
+        c.all_positive("motion.j_max", &self.motion.j_max)?;
+        for i in 0..NJ {
+            if self.motion.v_max[i] > arm.v_max[i] {
+                return Err(c.fail(
+                    format!("motion.v_max[{i}]"),
+                    self.motion.v_max[i],
+                    format!("exceeds the arm's velocity limit {}", arm.v_max[i]),
+                ));
+            }
+        }
+        c.all_positive("tracker.kp", &self.tracker.kp)?;
+        c.all_positive("tracker.kd", &self.tracker.kd)?;
+        if self.tracker.stale_ticks == 0 {
+            return Err(c.fail("tracker.stale_ticks", 0, "must be >= 1"));
+        }
+        let period_us = 1e6 / self.run.control_hz;
+        if (self.tracker.phase_us + self.tracker.state_wait_us) as f64 >= period_us {
+            return Err(c.fail(
+                "tracker.state_wait_us",
+                self.tracker.state_wait_us,
+                format!("phase_us + state_wait_us must be below the control period ({period_us} us)"),
+            ));
+        }
+        if self.tracker.fifo_priority > 99 {
+            return Err(c.fail("tracker.fifo_priority", self.tracker.fifo_priority, "must be 0..=99"));
+        }
+        if self.sim.fifo_priority > 99 {
+            return Err(c.fail("sim.fifo_priority", self.sim.fifo_priority, "must be 0..=99"));
+        }
+        c.within("sim.initial_q", &self.sim.initial_q, &arm.q_min, &arm.q_max)?;
+        c.within("goal.q", &self.goal.q, &arm.q_min, &arm.q_max)?;
+        if self.sim.substeps == 0 || self.sim.substeps > 100 {
+            return Err(c.fail("sim.substeps", self.sim.substeps, "must be 1..=100"));
+        }
+        c.non_negative("sim.noise_q_std", self.sim.noise_q_std)?;
+        c.non_negative("sim.noise_qd_std", self.sim.noise_qd_std)?;
+        c.non_negative("sim.brake_damping", self.sim.brake_damping)?;
+        if self.sim.delay_ticks > 1000 {
+            return Err(c.fail("sim.delay_ticks", self.sim.delay_ticks, "must be <= 1000"));
+        }
+        if self.sim.command_timeout_ticks == 0 {
+            return Err(c.fail("sim.command_timeout_ticks", 0, "must be >= 1"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn arm() -> ArmLimits {
+        ArmLimits { q_min: [-3.0; NJ], q_max: [3.0; NJ], v_max: [1.0; NJ], tau_max: [100.0; NJ] }
+    }
+
+    #[test]
+    fn default_scenario_parses_and_validates() {
+        let s = Scenario::default_scenario();
+        assert_eq!(s.name, "default");
+        assert_eq!(s.period_ns(), 1_000_000);
+        assert!(s.run.duration_s <= 10.0);
+        s.validate(&arm()).unwrap();
+    }
+
+    #[test]
+    fn round_trips_through_toml() {
+        let s = Scenario::default_scenario();
+        let back = Scenario::from_toml_str(&s.to_toml(), "rt").unwrap();
+        assert_eq!(s, back);
+    }
+
+    #[test]
+    fn a_bad_value_names_the_field_and_value() {
+        let text = DEFAULT_SCENARIO.replace("kp = [400.0, 400.0, 400.0", "kp = [400.0, 400.0, -1.0");
+        let s = Scenario::from_toml_str(&text, "x.toml").unwrap();
+        let e = s.validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("tracker.kp[2]") && e.contains("-1"), "{e}");
+
+        let text = DEFAULT_SCENARIO.replace("q = [0.8,", "q = [7.0,");
+        let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("goal.q[0]") && e.contains("joint limits"), "{e}");
+
+        let text = DEFAULT_SCENARIO.replace("v_max = [0.6,", "v_max = [1.6,");
+        let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("motion.v_max[0]") && e.contains("velocity limit"), "{e}");
+    }
+
+    #[test]
+    fn a_parse_error_names_the_key() {
+        let text = DEFAULT_SCENARIO.replace("substeps = 4", "substeps = \"four\"");
+        let e = Scenario::from_toml_str(&text, "bad.toml").unwrap_err().to_string();
+        assert!(e.contains("substeps") && e.contains("bad.toml"), "{e}");
+
+        let text = DEFAULT_SCENARIO.replace("[goal]", "[goal]\nspeed = 3");
+        let e = Scenario::from_toml_str(&text, "bad.toml").unwrap_err().to_string();
+        assert!(e.contains("speed"), "{e}");
+
+        let text = DEFAULT_SCENARIO.replace("mode = \"realtime\"", "mode = \"fast\"");
+        let e = Scenario::from_toml_str(&text, "bad.toml").unwrap_err().to_string();
+        assert!(e.contains("mode") || e.contains("fast"), "{e}");
+    }
+
+    #[test]
+    fn relative_urdf_paths_resolve_against_the_file() {
+        let mut s = Scenario::default_scenario();
+        assert_eq!(s.urdf_path(), None);
+        s.robot.urdf = "arms/x.urdf".into();
+        s.base_dir = Some(PathBuf::from("/tmp/sc"));
+        assert_eq!(s.urdf_path(), Some(PathBuf::from("/tmp/sc/arms/x.urdf")));
+    }
+}
