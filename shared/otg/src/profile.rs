@@ -1,0 +1,91 @@
+//! One joint's motion: a short sequence of constant-jerk phases starting from a
+//! known state, with exact closed-form integration.
+
+/// Most phases a single-section, single-joint profile can have: a braking
+/// pre-trajectory of at most 2 phases plus the 7 phases of the main profile.
+pub(crate) const MAX_PHASES: usize = 9;
+
+/// Integrate one constant-jerk phase of duration `t` exactly.
+#[inline(always)]
+pub(crate) fn integrate(t: f64, p: f64, v: f64, a: f64, j: f64) -> (f64, f64, f64) {
+    (p + t * (v + t * (a / 2.0 + t * j / 6.0)), v + t * (a + t * j / 2.0), a + t * j)
+}
+
+/// A piecewise-constant-jerk motion of one joint.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Profile {
+    pub n: usize,
+    pub t: [f64; MAX_PHASES],
+    pub j: [f64; MAX_PHASES],
+    pub p0: f64,
+    pub v0: f64,
+    pub a0: f64,
+}
+
+impl Profile {
+    pub fn new(p0: f64, v0: f64, a0: f64) -> Self {
+        Profile { n: 0, t: [0.0; MAX_PHASES], j: [0.0; MAX_PHASES], p0, v0, a0 }
+    }
+
+    /// Append a phase; phases of zero (or negative rounding-noise) duration are dropped.
+    #[inline]
+    pub fn push(&mut self, t: f64, j: f64) {
+        if t > 0.0 && self.n < MAX_PHASES {
+            self.t[self.n] = t;
+            self.j[self.n] = j;
+            self.n += 1;
+        }
+    }
+
+    /// Append all phases of `other` (which must start where `self` ends).
+    #[allow(dead_code)]
+    pub fn extend(&mut self, other: &Profile) {
+        for i in 0..other.n {
+            self.push(other.t[i], other.j[i]);
+        }
+    }
+
+    pub fn duration(&self) -> f64 {
+        self.t[..self.n].iter().sum()
+    }
+
+    /// State at the end of the profile.
+    pub fn end_state(&self) -> (f64, f64, f64) {
+        let (mut p, mut v, mut a) = (self.p0, self.v0, self.a0);
+        for i in 0..self.n {
+            (p, v, a) = integrate(self.t[i], p, v, a, self.j[i]);
+        }
+        (p, v, a)
+    }
+
+    /// Whether the profile stays within `|v| <= vmax` and `|a| <= amax` (with a
+    /// small relative tolerance) at every phase boundary and at every interior
+    /// velocity extremum. `skip` leading phases (a braking pre-trajectory) are
+    /// not checked.
+    #[allow(dead_code)]
+    pub fn within_limits(&self, vmax: f64, amax: f64, skip: usize) -> bool {
+        let vt = vmax * (1.0 + 1e-9) + 1e-12;
+        let at = amax * (1.0 + 1e-9) + 1e-12;
+        let (mut p, mut v, mut a) = (self.p0, self.v0, self.a0);
+        for i in 0..self.n {
+            let (t, j) = (self.t[i], self.j[i]);
+            if i >= skip {
+                if v.abs() > vt || a.abs() > at {
+                    return false;
+                }
+                if j != 0.0 {
+                    let tz = -a / j;
+                    if tz > 0.0 && tz < t {
+                        let vz = v + tz * (a + tz * j / 2.0);
+                        if vz.abs() > vt {
+                            return false;
+                        }
+                    }
+                }
+            }
+            (p, v, a) = integrate(t, p, v, a, j);
+        }
+        let _ = p;
+        v.abs() <= vt && a.abs() <= at
+    }
+}

@@ -1,0 +1,280 @@
+//! Input validation, per-joint minimum durations and synchronization of all
+//! joints to a common duration.
+
+use crate::brake::{position_brake, velocity_interface_brake, Brake};
+use crate::profile::{integrate, Profile};
+use crate::{step1, step2, velocity, KinState, Limits, Options, OtgError, Sync, Trajectory};
+
+/// Relative tolerance for reaching a target state when verifying profiles.
+pub(crate) const REACH_TOL: f64 = 1e-10;
+
+pub(crate) fn validate_limits<const N: usize>(l: &Limits<N>) -> Result<(), OtgError> {
+    for j in 0..N {
+        for (which, value) in [("v_max", l.v_max[j]), ("a_max", l.a_max[j]), ("j_max", l.j_max[j])] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(OtgError::InvalidLimit { joint: j, which, value });
+            }
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn validate_state<const N: usize>(
+    s: &KinState<N>,
+    prefix: &'static [&'static str; 3],
+) -> Result<(), OtgError> {
+    for j in 0..N {
+        for (which, value) in [(prefix[0], s.p[j]), (prefix[1], s.v[j]), (prefix[2], s.a[j])] {
+            if !value.is_finite() {
+                return Err(OtgError::NonFiniteState { joint: j, which, value });
+            }
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn validate_options<const N: usize>(o: &Options<N>) -> Result<(), OtgError> {
+    if let Some(d) = o.min_duration {
+        if !(d.is_finite() && d >= 0.0) {
+            return Err(OtgError::InvalidOption { which: "min_duration", value: d });
+        }
+    }
+    if let Some(p) = o.period {
+        if !(p.is_finite() && p > 0.0) {
+            return Err(OtgError::InvalidOption { which: "period", value: p });
+        }
+    }
+    Ok(())
+}
+
+/// Target velocity/acceleration validity for one joint (shared by both interfaces).
+pub(crate) fn validate_target_va(
+    j: usize,
+    vf: f64,
+    af: f64,
+    vm: f64,
+    am: f64,
+    jm: f64,
+) -> Result<(), OtgError> {
+    if vf.abs() > vm {
+        return Err(OtgError::TargetVelocityBeyondLimit { joint: j, value: vf, limit: vm });
+    }
+    if af.abs() > am {
+        return Err(OtgError::TargetAccelerationBeyondLimit { joint: j, value: af, limit: am });
+    }
+    if (af < 0.0 && vf + af * af / (2.0 * jm) > vm) || (af > 0.0 && vf - af * af / (2.0 * jm) < -vm) {
+        return Err(OtgError::UnreachableTargetAcceleration { joint: j, velocity: vf, acceleration: af });
+    }
+    Ok(())
+}
+
+pub(crate) const CUR: [&str; 3] = ["current position", "current velocity", "current acceleration"];
+pub(crate) const TGT: [&str; 3] = ["target position", "target velocity", "target acceleration"];
+
+/// Apply minimum duration and period rounding to a duration.
+pub(crate) fn adjust_duration<const N: usize>(t: f64, o: &Options<N>) -> f64 {
+    let mut t = t;
+    if let Some(m) = o.min_duration {
+        t = t.max(m);
+    }
+    if let Some(p) = o.period {
+        let k = (t / p - 1e-9).ceil().max(0.0);
+        t = k * p;
+    }
+    t
+}
+
+/// Start a profile with its braking phases; returns the profile and the post-brake state.
+fn start_with_brake(p0: f64, v0: f64, a0: f64, b: &Brake) -> (Profile, (f64, f64, f64)) {
+    let mut pr = Profile::new(p0, v0, a0);
+    let mut s = (p0, v0, a0);
+    for i in 0..2 {
+        if b.t[i] > 0.0 {
+            pr.push(b.t[i], b.j[i]);
+            s = integrate(b.t[i], s.0, s.1, s.2, b.j[i]);
+        }
+    }
+    (pr, s)
+}
+
+fn hold_profile(p0: f64, v0: f64, a0: f64) -> Profile {
+    Profile::new(p0, v0, a0)
+}
+
+impl<const N: usize> Trajectory<N> {
+    /// Time-optimal trajectory from `current` to `target` (position interface:
+    /// target position, velocity and acceleration) under `limits`.
+    pub fn calculate(
+        current: &KinState<N>,
+        target: &KinState<N>,
+        limits: &Limits<N>,
+        options: &Options<N>,
+    ) -> Result<Self, OtgError> {
+        validate_limits(limits)?;
+        validate_state(current, &CUR)?;
+        validate_state(target, &TGT)?;
+        validate_options(options)?;
+        for j in 0..N {
+            if options.enabled[j] {
+                validate_target_va(
+                    j,
+                    target.v[j],
+                    target.a[j],
+                    limits.v_max[j],
+                    limits.a_max[j],
+                    limits.j_max[j],
+                )?;
+            }
+        }
+        let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
+        let mut finals = [[0.0; 3]; N];
+        let mut tmin = [0.0f64; N];
+        let mut brake_t = [0.0f64; N];
+        let mut post = [(0.0, 0.0, 0.0); N];
+        let mut t_sync = 0.0f64;
+        for j in 0..N {
+            let (p0, v0, a0) = (current.p[j], current.v[j], current.a[j]);
+            if !options.enabled[j] {
+                profiles[j] = hold_profile(p0, v0, a0);
+                finals[j] = [p0, v0, a0];
+                continue;
+            }
+            let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
+            let b = position_brake(v0, a0, vm, am, jm);
+            let (mut pr, s) = start_with_brake(p0, v0, a0, &b);
+            brake_t[j] = b.duration();
+            post[j] = s;
+            let (pf, vf, af) = (target.p[j], target.v[j], target.a[j]);
+            if s.1 != 0.0 || s.2 != 0.0 || vf != 0.0 || af != 0.0 {
+                // Stage 1 supports rest-to-rest motion only.
+                return Err(OtgError::NoSolution { joint: j });
+            }
+            let dist = pf - s.0;
+            let (vc, t4) = step1::rest_to_rest(dist, vm, am, jm);
+            step1::push_rest_profile(&mut pr, dist.signum(), vc, t4, am, jm);
+            tmin[j] = pr.duration();
+            profiles[j] = pr;
+            finals[j] = [pf, vf, af];
+            t_sync = t_sync.max(tmin[j]);
+        }
+        if options.sync == Sync::None {
+            let t = adjust_duration(t_sync, options);
+            return Ok(Self::from_profiles(&profiles, &finals, t));
+        }
+        let t_sync = adjust_duration(t_sync, options);
+        for j in 0..N {
+            if !options.enabled[j] || tmin[j] == t_sync {
+                continue;
+            }
+            let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
+            let s = post[j];
+            let dist = target.p[j] - s.0;
+            let b = position_brake(current.v[j], current.a[j], vm, am, jm);
+            let (mut pr, _) = start_with_brake(current.p[j], current.v[j], current.a[j], &b);
+            let (vc_min, _) = step1::rest_to_rest(dist, vm, am, jm);
+            let tt = t_sync - brake_t[j];
+            let (vc, t4) = step2::rest_to_rest_with_duration(dist, tt, vc_min, am, jm)
+                .ok_or(OtgError::NoSolution { joint: j })?;
+            if dist == 0.0 {
+                pr.push(t4, 0.0);
+            } else {
+                step1::push_rest_profile(&mut pr, dist.signum(), vc, t4, am, jm);
+            }
+            profiles[j] = pr;
+        }
+        for j in 0..N {
+            if options.enabled[j] {
+                verify(&profiles[j], &finals[j], j)?;
+            }
+        }
+        Ok(Self::from_profiles(&profiles, &finals, t_sync))
+    }
+
+    /// Time-optimal trajectory that reaches `target_v`/`target_a` (velocity
+    /// interface; positions are free) under `limits`. With zero targets this is
+    /// the fastest jerk-limited brake to rest. A current acceleration beyond the
+    /// limit is first ramped back inside it.
+    pub fn calculate_velocity(
+        current: &KinState<N>,
+        target_v: &[f64; N],
+        target_a: &[f64; N],
+        limits: &Limits<N>,
+        options: &Options<N>,
+    ) -> Result<Self, OtgError> {
+        validate_limits(limits)?;
+        validate_state(current, &CUR)?;
+        validate_state(&KinState { p: [0.0; N], v: *target_v, a: *target_a }, &TGT)?;
+        validate_options(options)?;
+        for j in 0..N {
+            if options.enabled[j] {
+                let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
+                validate_target_va(j, target_v[j], target_a[j], vm, am, jm)?;
+            }
+        }
+        let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
+        let mut finals = [[0.0; 3]; N];
+        let mut tmin = [0.0f64; N];
+        let mut t_sync = 0.0f64;
+        for j in 0..N {
+            let (p0, v0, a0) = (current.p[j], current.v[j], current.a[j]);
+            if !options.enabled[j] {
+                profiles[j] = hold_profile(p0, v0, a0);
+                finals[j] = [p0, v0, a0];
+                continue;
+            }
+            let (am, jm) = (limits.a_max[j], limits.j_max[j]);
+            let b = velocity_interface_brake(a0, am, jm);
+            let (mut pr, s) = start_with_brake(p0, v0, a0, &b);
+            let a_s = s.2.clamp(-am, am);
+            let vp = velocity::min_time(s.1, a_s, target_v[j], target_a[j], am, jm)
+                .ok_or(OtgError::NoSolution { joint: j })?;
+            for i in 0..3 {
+                pr.push(vp.t[i], vp.j[i]);
+            }
+            tmin[j] = pr.duration();
+            profiles[j] = pr;
+            t_sync = t_sync.max(tmin[j]);
+        }
+        let t_sync = adjust_duration(t_sync, options);
+        for j in 0..N {
+            if !options.enabled[j] {
+                continue;
+            }
+            let (p0, v0, a0) = (current.p[j], current.v[j], current.a[j]);
+            let (am, jm) = (limits.a_max[j], limits.j_max[j]);
+            if options.sync != Sync::None && tmin[j] != t_sync {
+                let b = velocity_interface_brake(a0, am, jm);
+                let (mut pr, s) = start_with_brake(p0, v0, a0, &b);
+                let a_s = s.2.clamp(-am, am);
+                let tt = t_sync - b.duration();
+                let vp = velocity::with_duration(s.1, a_s, target_v[j], target_a[j], am, jm, tt)
+                    .ok_or(OtgError::NoSolution { joint: j })?;
+                for i in 0..3 {
+                    pr.push(vp.t[i], vp.j[i]);
+                }
+                profiles[j] = pr;
+            }
+            let (pe, _, _) = profiles[j].end_state();
+            finals[j] = [pe, target_v[j], target_a[j]];
+            let (_, ve, ae) = profiles[j].end_state();
+            if (ve - target_v[j]).abs() > 1e-9 * (1.0 + target_v[j].abs()) || (ae - target_a[j]).abs() > 1e-9
+            {
+                return Err(OtgError::NoSolution { joint: j });
+            }
+        }
+        Ok(Self::from_profiles(&profiles, &finals, t_sync))
+    }
+}
+
+/// Check by forward integration that a profile reaches its target.
+pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), OtgError> {
+    let (p, v, a) = pr.end_state();
+    let ok = (p - fin[0]).abs() <= REACH_TOL * (1.0 + fin[0].abs())
+        && (v - fin[1]).abs() <= REACH_TOL * (1.0 + fin[1].abs())
+        && (a - fin[2]).abs() <= 1e-11 * (1.0 + fin[2].abs());
+    if ok {
+        Ok(())
+    } else {
+        Err(OtgError::NoSolution { joint })
+    }
+}
