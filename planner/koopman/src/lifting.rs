@@ -1,0 +1,287 @@
+//! Dictionaries (liftings) `φ: ℝⁿ → ℝᵖ`.
+//!
+//! Convention (all liftings in this crate, and required of future ones): the first `n` entries
+//! of `φ(x)` are `x` itself, so the decoder `Π = [I 0]` is trivial, as in the paper's
+//! `φ(x) = [x, NN(x)]`. [`Lifting::lift`] must not allocate: it is called in the forecast loop
+//! (relift mode). A learned lifting (e.g. an MLP with weights in fixed arrays) plugs in by
+//! implementing this trait; [`Lifting::lift_derivative`] has a finite-difference default so it
+//! only needs `lift`.
+
+/// A dictionary of observables whose first `state_dim()` outputs are the state itself.
+pub trait Lifting: Send + Sync {
+    /// State dimension `n`.
+    fn state_dim(&self) -> usize;
+    /// Lifted dimension `p ≥ n`.
+    fn dim(&self) -> usize;
+    /// `out[..p] = φ(x)`; `x.len() ≥ n`, `out.len() ≥ p`. Must not allocate.
+    fn lift(&self, x: &[f64], out: &mut [f64]);
+    /// Time derivative of the observables along a flow: `out = Dφ(x) · ẋ`.
+    /// Used to fit the continuous-time generator from collocation data (fitting only).
+    /// The default uses central finite differences (allocates two buffers).
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        let (n, p) = (self.state_dim(), self.dim());
+        let scale = x[..n].iter().chain(&xdot[..n]).fold(1e-3f64, |m, v| m.max(v.abs()));
+        let vn = xdot[..n].iter().map(|v| v * v).sum::<f64>().sqrt();
+        if vn == 0.0 {
+            out[..p].iter_mut().for_each(|o| *o = 0.0);
+            return;
+        }
+        let h = 1e-5 * scale / vn;
+        let mut xp: Vec<f64> = x[..n].iter().zip(xdot).map(|(a, b)| a + h * b).collect();
+        let mut fp = vec![0.0; p];
+        self.lift(&xp, &mut fp);
+        xp.iter_mut().zip(x.iter().zip(xdot)).for_each(|(o, (a, b))| *o = a - h * b);
+        self.lift(&xp, &mut out[..p]);
+        for i in 0..p {
+            out[i] = (fp[i] - out[i]) / (2.0 * h);
+        }
+    }
+}
+
+/// Polynomial dictionary: `[x, 1, all monomials of total degree 2..=d in (x_i / s_i)]`.
+/// Degree 1 gives `[x, 1]` (DMD with an affine term).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polynomial {
+    n: usize,
+    degree: usize,
+    inv_scale: Vec<f64>,
+    /// Flattened variable-index lists of the monomials (each of length = its degree).
+    idx: Vec<u16>,
+    /// Offsets into `idx`, one more than the number of monomials.
+    off: Vec<u32>,
+}
+
+impl Polynomial {
+    /// All monomials up to `degree` over `n` variables (unit scales).
+    pub fn new(n: usize, degree: usize) -> Self {
+        assert!(n >= 1 && n < u16::MAX as usize, "Polynomial: bad state dimension");
+        fn gen(
+            n: usize,
+            left: usize,
+            start: usize,
+            cur: &mut Vec<u16>,
+            idx: &mut Vec<u16>,
+            off: &mut Vec<u32>,
+        ) {
+            if left == 0 {
+                idx.extend_from_slice(cur);
+                off.push(idx.len() as u32);
+                return;
+            }
+            for i in start..n {
+                cur.push(i as u16);
+                gen(n, left - 1, i, cur, idx, off);
+                cur.pop();
+            }
+        }
+        let mut idx = Vec::new();
+        let mut off = vec![0u32];
+        for deg in 2..=degree {
+            gen(n, deg, 0, &mut Vec::with_capacity(deg), &mut idx, &mut off);
+        }
+        Polynomial { n, degree, inv_scale: vec![1.0; n], idx, off }
+    }
+    /// Monomials use `x_i / scale_i` (conditioning); the leading `x` block is unscaled.
+    pub fn with_scale(mut self, scale: &[f64]) -> Self {
+        assert_eq!(scale.len(), self.n);
+        self.inv_scale = scale.iter().map(|s| 1.0 / s).collect();
+        self
+    }
+    /// Polynomial degree.
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+    /// Number of monomials of degree ≥ 2.
+    pub fn n_monomials(&self) -> usize {
+        self.off.len() - 1
+    }
+}
+
+impl Lifting for Polynomial {
+    fn state_dim(&self) -> usize {
+        self.n
+    }
+    fn dim(&self) -> usize {
+        self.n + 1 + self.n_monomials()
+    }
+    fn lift(&self, x: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&x[..n]);
+        out[n] = 1.0;
+        for m in 0..self.off.len() - 1 {
+            let mut v = 1.0;
+            for &i in &self.idx[self.off[m] as usize..self.off[m + 1] as usize] {
+                let i = i as usize;
+                v *= x[i] * self.inv_scale[i];
+            }
+            out[n + 1 + m] = v;
+        }
+    }
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&xdot[..n]);
+        out[n] = 0.0;
+        for m in 0..self.off.len() - 1 {
+            let vars = &self.idx[self.off[m] as usize..self.off[m + 1] as usize];
+            let mut acc = 0.0;
+            for k in 0..vars.len() {
+                let mut term = xdot[vars[k] as usize] * self.inv_scale[vars[k] as usize];
+                for (j, &i) in vars.iter().enumerate() {
+                    if j != k {
+                        term *= x[i as usize] * self.inv_scale[i as usize];
+                    }
+                }
+                acc += term;
+            }
+            out[n + 1 + m] = acc;
+        }
+    }
+}
+
+/// Radial basis function kind.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RbfKind {
+    /// `exp(−r² / (2σ²))`.
+    Gaussian {
+        /// Width σ (in scaled units).
+        sigma: f64,
+    },
+    /// Thin-plate spline `r² ln r`.
+    ThinPlate,
+}
+
+/// RBF dictionary: `[x, 1, ψ(‖(x − c_k) ⊘ s‖) for each centre c_k]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rbf {
+    n: usize,
+    kind: RbfKind,
+    centres: Vec<f64>,
+    inv_scale: Vec<f64>,
+}
+
+impl Rbf {
+    /// `centres` is `k × n` row-major.
+    pub fn new(n: usize, centres: Vec<f64>, kind: RbfKind) -> Self {
+        assert!(n >= 1 && centres.len() % n == 0, "Rbf: centres must be k × n");
+        Rbf { n, kind, centres, inv_scale: vec![1.0; n] }
+    }
+    /// Per-coordinate scaling of distances.
+    pub fn with_scale(mut self, scale: &[f64]) -> Self {
+        assert_eq!(scale.len(), self.n);
+        self.inv_scale = scale.iter().map(|s| 1.0 / s).collect();
+        self
+    }
+    /// Number of centres.
+    pub fn n_centres(&self) -> usize {
+        self.centres.len() / self.n
+    }
+}
+
+impl Lifting for Rbf {
+    fn state_dim(&self) -> usize {
+        self.n
+    }
+    fn dim(&self) -> usize {
+        self.n + 1 + self.n_centres()
+    }
+    fn lift(&self, x: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&x[..n]);
+        out[n] = 1.0;
+        for (k, c) in self.centres.chunks_exact(n).enumerate() {
+            let mut r2 = 0.0;
+            for i in 0..n {
+                let d = (x[i] - c[i]) * self.inv_scale[i];
+                r2 += d * d;
+            }
+            out[n + 1 + k] = match self.kind {
+                RbfKind::Gaussian { sigma } => (-r2 / (2.0 * sigma * sigma)).exp(),
+                RbfKind::ThinPlate => {
+                    if r2 > 0.0 {
+                        0.5 * r2 * r2.ln()
+                    } else {
+                        0.0
+                    }
+                }
+            };
+        }
+    }
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&xdot[..n]);
+        out[n] = 0.0;
+        for (k, c) in self.centres.chunks_exact(n).enumerate() {
+            let (mut r2, mut dr2) = (0.0, 0.0); // dr2 = d/dt r² / 2
+            for i in 0..n {
+                let s2 = self.inv_scale[i] * self.inv_scale[i];
+                let d = x[i] - c[i];
+                r2 += d * d * s2;
+                dr2 += d * xdot[i] * s2;
+            }
+            out[n + 1 + k] = match self.kind {
+                RbfKind::Gaussian { sigma } => -dr2 / (sigma * sigma) * (-r2 / (2.0 * sigma * sigma)).exp(),
+                RbfKind::ThinPlate => {
+                    if r2 > 0.0 {
+                        dr2 * (r2.ln() + 1.0)
+                    } else {
+                        0.0
+                    }
+                }
+            };
+        }
+    }
+}
+
+/// Fourier dictionary: `[x, 1, sin(k ω_i x_i), cos(k ω_i x_i) for i < n, k = 1..=K]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fourier {
+    n: usize,
+    harmonics: usize,
+    omega: Vec<f64>,
+}
+
+impl Fourier {
+    /// `omega[i]` is the base angular frequency for coordinate `i`.
+    pub fn new(omega: Vec<f64>, harmonics: usize) -> Self {
+        assert!(!omega.is_empty() && harmonics >= 1);
+        Fourier { n: omega.len(), harmonics, omega }
+    }
+}
+
+impl Lifting for Fourier {
+    fn state_dim(&self) -> usize {
+        self.n
+    }
+    fn dim(&self) -> usize {
+        self.n + 1 + 2 * self.n * self.harmonics
+    }
+    fn lift(&self, x: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&x[..n]);
+        out[n] = 1.0;
+        let mut o = n + 1;
+        for i in 0..n {
+            for k in 1..=self.harmonics {
+                let (s, c) = (k as f64 * self.omega[i] * x[i]).sin_cos();
+                out[o] = s;
+                out[o + 1] = c;
+                o += 2;
+            }
+        }
+    }
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        let n = self.n;
+        out[..n].copy_from_slice(&xdot[..n]);
+        out[n] = 0.0;
+        let mut o = n + 1;
+        for i in 0..n {
+            for k in 1..=self.harmonics {
+                let w = k as f64 * self.omega[i];
+                let (s, c) = (w * x[i]).sin_cos();
+                out[o] = c * w * xdot[i];
+                out[o + 1] = -s * w * xdot[i];
+                o += 2;
+            }
+        }
+    }
+}
