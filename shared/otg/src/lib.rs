@@ -40,6 +40,7 @@
 
 mod brake;
 mod error;
+mod poly;
 mod profile;
 mod step1;
 mod step2;

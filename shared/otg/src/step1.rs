@@ -1,48 +1,288 @@
-//! Step 1: the time-optimal profile of a single joint (minimum duration).
+//! Step 1: all time-optimal candidate profiles of one joint, the minimum
+//! duration, and the blocked duration intervals.
+//!
+//! After braking, every candidate is a 7-phase "UDDU" profile in direction
+//! `d = ±1` with jerks `dJ, 0, −dJ, 0, −dJ, 0, dJ`. Phase 2 is a plateau at
+//! the acceleration limit `dA` (ACC0), phase 4 a cruise at `dV` (VEL), phase 6
+//! a plateau at `−dA` (ACC1). Families:
+//!
+//! * VEL (any plateaus): two time-optimal velocity profiles to/from the cruise,
+//!   cruise time from the distance (closed form).
+//! * ACC0_ACC1: plateau times from the velocity (linear) and position
+//!   (quadratic) equations.
+//! * ACC0 / ACC1: one free peak acceleration, a quartic.
+//! * NONE: peak accelerations `A1, A2` with `A1² − A2² = C` from the velocity
+//!   equation, parameterized by `u = A1 − A2`; the position equation becomes a
+//!   polynomial of degree ≤ 6 in `u`.
+//!
+//! Each family's equation is assembled symbolically (Laurent polynomials in
+//! the free parameter), its real roots are found by derivative-bracketing with
+//! Newton polishing, and every root is turned into a numeric profile that is
+//! verified by exact forward integration and limit checks before acceptance.
 
-use crate::profile::Profile;
+use crate::poly::{real_roots, Lp, MAX_ROOTS};
+use crate::profile::{integrate, Profile};
+use crate::velocity;
 
-/// Acceleration ramp from rest to cruise velocity `vc` (>= 0): jerk time and
-/// constant-acceleration time.
-#[inline]
-pub(crate) fn ramp(vc: f64, am: f64, jm: f64) -> (f64, f64) {
-    if vc * jm >= am * am {
-        (am / jm, vc / am - am / jm)
-    } else {
-        ((vc / jm).sqrt(), 0.0)
+/// Most candidates collected per joint.
+const MAX_CAND: usize = 24;
+
+/// One joint's step-1 result.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Step1 {
+    /// The fastest profile (main phases only, starting at the post-brake state).
+    pub best: Profile,
+    pub t_min: f64,
+    /// Durations in `(left, right)` for which no profile exists.
+    pub blocked: [(f64, f64); 2],
+    /// Profiles of duration exactly `blocked[i].1`.
+    pub right: [Profile; 2],
+    pub n_blocked: usize,
+}
+
+impl Step1 {
+    pub fn is_blocked(&self, t: f64) -> bool {
+        t < self.t_min || self.blocked[..self.n_blocked].iter().any(|&(l, r)| t > l && t < r)
     }
 }
 
-/// Append a symmetric rest-to-rest profile with cruise velocity `vc`, jerk
-/// direction `d` and cruise time `t4`.
-pub(crate) fn push_rest_profile(prof: &mut Profile, d: f64, vc: f64, t4: f64, am: f64, jm: f64) {
-    let (tj, tc) = ramp(vc, am, jm);
-    prof.push(tj, d * jm);
-    prof.push(tc, 0.0);
-    prof.push(tj, -d * jm);
-    prof.push(t4, 0.0);
-    prof.push(tj, -d * jm);
-    prof.push(tc, 0.0);
-    prof.push(tj, d * jm);
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Problem {
+    pub p0: f64,
+    pub v0: f64,
+    pub a0: f64,
+    pub pf: f64,
+    pub vf: f64,
+    pub af: f64,
+    pub vm: f64,
+    pub am: f64,
+    pub jm: f64,
 }
 
-/// Minimum-time rest-to-rest motion over distance `dist` (any sign):
-/// returns `(cruise velocity, cruise time)`.
-pub(crate) fn rest_to_rest(dist: f64, vm: f64, am: f64, jm: f64) -> (f64, f64) {
-    let d = dist.abs();
-    if d == 0.0 {
-        return (0.0, 0.0);
+struct Cands {
+    n: usize,
+    t: [f64; MAX_CAND],
+    p: [Profile; MAX_CAND],
+}
+
+impl Problem {
+    /// Velocity bound for checks: the limit, or the excursion that the start
+    /// state makes inevitable (e.g. after a brake that ends at the velocity
+    /// limit with an acceleration that must still be ramped back).
+    fn v_bound(&self) -> f64 {
+        let exc = (self.v0 + self.a0 * self.a0.abs() / (2.0 * self.jm)).abs();
+        self.vm.max(exc).max(self.v0.abs())
     }
-    let (tj, tc) = ramp(vm, am, jm);
-    let tacc = 2.0 * tj + tc;
-    if vm * tacc <= d {
-        return (vm, d / vm - tacc);
+
+    /// Verify a numeric profile: reaches the target and respects the limits.
+    pub fn accept(&self, pr: &Profile) -> bool {
+        let (p, v, a) = pr.end_state();
+        (p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
+            && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
+            && (a - self.af).abs() <= 1e-11 * (1.0 + self.am)
+            && pr.within_limits(self.v_bound(), self.am, 0)
     }
-    // Velocity limit not reached: vc·Tacc(vc) = d.
-    let k = am / jm;
-    let vc = (-k + (k * k + 4.0 * d / am).sqrt()) * am / 2.0;
-    if vc * jm >= am * am {
-        return (vc.min(vm), 0.0);
+
+    /// Build a profile from phase durations (clamping rounding noise).
+    fn build(&self, t: &[f64], j: &[f64]) -> Option<Profile> {
+        let scale: f64 = 1e-10 * (1.0 + t.iter().map(|x| x.abs()).sum::<f64>());
+        let mut pr = Profile::new(self.p0, self.v0, self.a0);
+        for (&ti, &ji) in t.iter().zip(j) {
+            if !(ti >= -scale) || !ti.is_finite() {
+                return None;
+            }
+            pr.push(ti, ji);
+        }
+        Some(pr)
     }
-    ((d * jm.sqrt() / 2.0).powf(2.0 / 3.0).min(vm), 0.0)
+
+    fn add(&self, c: &mut Cands, pr: Profile) {
+        if false {
+            {
+                let (mut p, mut v, mut a) = (pr.p0, pr.v0, pr.a0);
+                for i in 0..pr.n {
+                    (p, v, a) = integrate(pr.t[i], p, v, a, pr.j[i]);
+                    eprint!("[j{} v{} a{}] ", pr.j[i], v - self.vm, a);
+                }
+                eprintln!(" lim {}", pr.within_limits(self.vm, self.am, 0));
+            }
+        }
+        if c.n < MAX_CAND && self.accept(&pr) {
+            c.t[c.n] = pr.duration();
+            c.p[c.n] = pr;
+            c.n += 1;
+        }
+    }
+
+    /// Solve a family whose phase durations are Laurent polynomials in `x`:
+    /// position residual roots in `[lo, hi]` become candidates.
+    fn family(&self, c: &mut Cands, ts: &[Lp], js: &[f64], lo: f64, hi: f64) {
+        let (mut p, mut v, mut a) = (Lp::constant(self.p0), Lp::constant(self.v0), Lp::constant(self.a0));
+        for (t, &j) in ts.iter().zip(js) {
+            let t2 = t.mul(t);
+            let t3 = t2.mul(t);
+            p = p.add(&v.mul(t)).add(&a.mul(&t2).scale(0.5)).add(&t3.scale(j / 6.0));
+            v = v.add(&a.mul(t)).add(&t2.scale(j / 2.0));
+            a = a.add(&t.scale(j));
+        }
+        let r = p.add_const(-self.pf);
+        let mut coeffs = [0.0; 17];
+        let n = r.to_poly(&mut coeffs);
+        let mut roots = [0.0; MAX_ROOTS];
+        let nr = real_roots(&coeffs[..n], lo, hi, &mut roots);
+        let mut tv = [0.0; 7];
+        for &x in &roots[..nr] {
+            for (k, t) in ts.iter().enumerate() {
+                tv[k] = t.eval(x);
+            }
+            if let Some(pr) = self.build(&tv[..ts.len()], js) {
+                self.add(c, pr);
+            }
+        }
+    }
+
+    /// All step-1 candidates; `None` if there is none (numerical failure).
+    pub fn solve(&self) -> Option<Step1> {
+        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let (v0, a0, vf, af) = (self.v0, self.a0, self.vf, self.af);
+        let (vm, am, jm) = (self.vm, self.am, self.jm);
+        let dv = vf - v0;
+        let dp = self.pf - self.p0;
+        if dp == 0.0 && dv == 0.0 && a0 == 0.0 && af == 0.0 {
+            let pr = Profile::new(self.p0, v0, a0);
+            return Some(Step1 {
+                best: pr,
+                t_min: 0.0,
+                blocked: [(0.0, 0.0); 2],
+                right: [pr; 2],
+                n_blocked: 0,
+            });
+        }
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let a1 = d * am;
+            let a2 = -d * am;
+            // VEL
+            if let (Some(h1), Some(h2)) = (
+                velocity::min_time(v0, a0, d * vm, 0.0, am, jm),
+                velocity::min_time(d * vm, 0.0, vf, af, am, jm),
+            ) {
+                let (mut p, mut v, mut a) = (0.0, v0, a0);
+                for i in 0..3 {
+                    (p, v, a) = integrate(h1.t[i], p, v, a, h1.j[i]);
+                }
+                let p1 = p;
+                let (mut p, mut v2, mut a2x) = (0.0, d * vm, 0.0);
+                for i in 0..3 {
+                    (p, v2, a2x) = integrate(h2.t[i], p, v2, a2x, h2.j[i]);
+                }
+                let _ = (v, a, v2, a2x);
+                let t4 = (dp - p1 - p) / (d * vm);
+                let t = [h1.t[0], h1.t[1], h1.t[2], t4, h2.t[0], h2.t[1], h2.t[2]];
+                let j = [h1.j[0], h1.j[1], h1.j[2], 0.0, h2.j[0], h2.j[1], h2.j[2]];
+                if let Some(pr) = self.build(&t, &j) {
+                    self.add(&mut c, pr);
+                }
+            }
+            let js = [jd, 0.0, -jd, 0.0, jd];
+            let k = Lp::constant;
+            // ACC0_ACC1: A1 t2 + A2 t6 = R.
+            {
+                let r = dv - (a1 * a1 - a0 * a0) / (2.0 * jd) - (af * af - a2 * a2) / (2.0 * jd);
+                let x = Lp::mono(1.0, 1);
+                let ts = [
+                    k((a1 - a0) / jd),
+                    x,
+                    k((a1 - a2) / jd),
+                    x.scale(-a1 / a2).add_const(r / a2),
+                    k((af - a2) / jd),
+                ];
+                self.family(&mut c, &ts, &js, f64::NEG_INFINITY, f64::INFINITY);
+            }
+            // ACC0: A1 = dA, x = A2, t6 = 0.
+            {
+                let x = Lp::mono(1.0, 1);
+                let x2 = x.mul(&x);
+                // t2 = (Δv − (2A1² − a0² + af²)/(2jd) + x²/jd) / A1
+                let t2 = x2
+                    .scale(1.0 / (jd * a1))
+                    .add_const((dv - (2.0 * a1 * a1 - a0 * a0 + af * af) / (2.0 * jd)) / a1);
+                let ts = [
+                    k((a1 - a0) / jd),
+                    t2,
+                    x.scale(-1.0 / jd).add_const(a1 / jd),
+                    Lp::ZERO,
+                    x.scale(-1.0 / jd).add_const(af / jd),
+                ];
+                self.family(&mut c, &ts, &js, -am * (1.0 + 1e-12), am * (1.0 + 1e-12));
+            }
+            // ACC1: A2 = −dA, x = A1, t2 = 0.
+            {
+                let x = Lp::mono(1.0, 1);
+                let x2 = x.mul(&x);
+                // t6 = (Δv − (−a0² − 2A2² + af²)/(2jd) − x²/jd) / A2
+                let t6 = x2
+                    .scale(-1.0 / (jd * a2))
+                    .add_const((dv - (-a0 * a0 - 2.0 * a2 * a2 + af * af) / (2.0 * jd)) / a2);
+                let ts = [
+                    x.scale(1.0 / jd).add_const(-a0 / jd),
+                    Lp::ZERO,
+                    x.scale(1.0 / jd).add_const(-a2 / jd),
+                    t6,
+                    k((af - a2) / jd),
+                ];
+                self.family(&mut c, &ts, &js, -am * (1.0 + 1e-12), am * (1.0 + 1e-12));
+            }
+            // NONE: u = A1 − A2, A1 = (u + C/u)/2, A2 = (C/u − u)/2.
+            {
+                let cc = jd * dv + (a0 * a0 - af * af) / 2.0;
+                let u = Lp::mono(1.0, 1);
+                let cu = Lp::mono(cc, -1);
+                let a1u = u.add(&cu).scale(0.5);
+                let a2u = cu.add(&u.scale(-1.0)).scale(0.5);
+                let ts = [
+                    a1u.add_const(-a0).scale(1.0 / jd),
+                    Lp::ZERO,
+                    u.scale(1.0 / jd),
+                    Lp::ZERO,
+                    a2u.scale(-1.0).add_const(af).scale(1.0 / jd),
+                ];
+                let (lo, hi) = if d > 0.0 {
+                    (1e-300, 2.0 * am * (1.0 + 1e-9))
+                } else {
+                    (-2.0 * am * (1.0 + 1e-9), -1e-300)
+                };
+                self.family(&mut c, &ts, &js, lo, hi);
+            }
+        }
+        if c.n == 0 {
+            return None;
+        }
+        // Sort by duration and merge duplicates (the same profile found by two families).
+        let mut idx = [0usize; MAX_CAND];
+        for (i, v) in idx.iter_mut().enumerate() {
+            *v = i;
+        }
+        let idx = &mut idx[..c.n];
+        idx.sort_unstable_by(|&a, &b| c.t[a].total_cmp(&c.t[b]));
+        let mut u = [0usize; MAX_CAND];
+        let mut nu = 0;
+        for &i in idx.iter() {
+            if nu == 0 || c.t[i] - c.t[u[nu - 1]] > 1e-9 * (1.0 + c.t[i]) {
+                u[nu] = i;
+                nu += 1;
+            }
+        }
+        let best = c.p[u[0]];
+        let mut out =
+            Step1 { best, t_min: c.t[u[0]], blocked: [(0.0, 0.0); 2], right: [best; 2], n_blocked: 0 };
+        let mut k = 1;
+        while k + 1 < nu && out.n_blocked < 2 {
+            out.blocked[out.n_blocked] = (c.t[u[k]], c.t[u[k + 1]]);
+            out.right[out.n_blocked] = c.p[u[k + 1]];
+            out.n_blocked += 1;
+            k += 2;
+        }
+        Some(out)
+    }
 }

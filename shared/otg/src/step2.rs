@@ -1,48 +1,139 @@
-//! Step 2: a profile of one joint with a prescribed duration (used to make
-//! all joints finish together).
+//! Step 2: a profile of one joint with a prescribed duration (so that all
+//! joints finish together).
+//!
+//! Primary family: a time-optimal velocity profile to a cruise velocity `vc`
+//! (acceleration 0), a cruise, and a time-optimal velocity profile to the
+//! target; the cruise time follows from the duration, and `vc` is the root of
+//! the remaining position equation (bracketed over `[-V, V]`, then bisected).
+//! Fallbacks for the rare durations this family cannot realize: the
+//! time-optimal profile under a reduced jerk or acceleration limit whose
+//! minimum duration equals the prescribed one.
 
-use crate::step1::ramp;
+use crate::profile::{integrate, Profile};
+use crate::step1::Problem;
+use crate::velocity::{self, VelProfile};
 
-/// Rest-to-rest over `dist` in exactly `tt` (>= the minimum duration): the
-/// cruise velocity `vc` and cruise time, found on the decreasing branch of
-/// `g(vc) = Tacc(vc) + d/vc`.
-pub(crate) fn rest_to_rest_with_duration(
-    dist: f64,
-    tt: f64,
-    vc_max: f64,
-    am: f64,
-    jm: f64,
-) -> Option<(f64, f64)> {
-    let d = dist.abs();
-    if d == 0.0 {
-        return Some((0.0, tt));
+fn vel_end(h: &VelProfile, v: f64, a: f64) -> f64 {
+    let (mut p, mut v, mut a) = (0.0, v, a);
+    for i in 0..3 {
+        (p, v, a) = integrate(h.t[i], p, v, a, h.j[i]);
     }
-    let tacc = |vc: f64| {
-        let (tj, tc) = ramp(vc, am, jm);
-        2.0 * tj + tc
+    p
+}
+
+/// Cruise family residual at cruise velocity `vc`.
+fn cruise(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, VelProfile)> {
+    let h1 = velocity::min_time(pb.v0, pb.a0, vc, 0.0, pb.am, pb.jm)?;
+    let h2 = velocity::min_time(vc, 0.0, pb.vf, pb.af, pb.am, pb.jm)?;
+    let t4 = tt - h1.duration() - h2.duration();
+    if t4 < -1e-12 * (1.0 + tt) {
+        return None;
+    }
+    let f = vel_end(&h1, pb.v0, pb.a0) + vel_end(&h2, vc, 0.0) + vc * t4.max(0.0) - (pb.pf - pb.p0);
+    Some((f, h1, t4.max(0.0), h2))
+}
+
+fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Profile {
+    let mut pr = Profile::new(pb.p0, pb.v0, pb.a0);
+    for i in 0..3 {
+        pr.push(h1.t[i], h1.j[i]);
+    }
+    pr.push(t4, 0.0);
+    for i in 0..3 {
+        pr.push(h2.t[i], h2.j[i]);
+    }
+    pr
+}
+
+fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
+    const K: usize = 32;
+    let mut prev: Option<(f64, f64)> = None;
+    for i in 0..=K {
+        let vc = pb.vm * (2.0 * i as f64 / K as f64 - 1.0);
+        let cur = cruise(pb, tt, vc).map(|(f, ..)| (vc, f));
+        if let (Some((x0, f0)), Some((x1, f1))) = (prev, cur) {
+            if (f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0 {
+                // Bisect; the residual is continuous where it is defined.
+                let (mut a, mut b, mut fa) = (x0, x1, f0);
+                let mut ok = true;
+                for _ in 0..80 {
+                    let m = 0.5 * (a + b);
+                    if m <= a || m >= b {
+                        break;
+                    }
+                    match cruise(pb, tt, m) {
+                        Some((fm, ..)) => {
+                            if (fm <= 0.0) == (fa <= 0.0) {
+                                a = m;
+                                fa = fm;
+                            } else {
+                                b = m;
+                            }
+                        }
+                        None => {
+                            ok = false;
+                            break;
+                        }
+                    }
+                }
+                if ok {
+                    for x in [a, b] {
+                        if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
+                            let pr = cruise_profile(pb, &h1, t4, &h2);
+                            if pb.accept(&pr) {
+                                return Some(pr);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        prev = cur;
+    }
+    None
+}
+
+/// Reduce the jerk (`which = 0`) or acceleration (`which = 1`) limit until the
+/// time-optimal duration equals `tt`.
+fn by_reduced_limit(pb: &Problem, tt: f64, which: usize) -> Option<Profile> {
+    let full = if which == 0 { pb.jm } else { pb.am };
+    let floor = if which == 0 { 0.0 } else { pb.a0.abs().max(pb.af.abs()) };
+    let make = |x: f64| {
+        let mut q = Problem { ..*pb };
+        if which == 0 {
+            q.jm = x;
+        } else {
+            q.am = x;
+        }
+        q
     };
-    let g = |vc: f64| tacc(vc) + d / vc;
-    if g(vc_max) >= tt {
-        let t4 = (d / vc_max - tacc(vc_max)).max(0.0);
-        return Some((vc_max, t4));
-    }
-    // Bracket: g(lo) > tt > g(hi) with g decreasing.
-    let (mut lo, mut hi) = (d / tt * 0.5, vc_max);
-    if g(lo) < tt {
-        lo = f64::MIN_POSITIVE;
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
+    let (mut lo, mut hi) = (floor, full);
+    let mut best: Option<Profile> = None;
+    for _ in 0..100 {
+        let m = 0.5 * (lo + hi);
+        if m <= lo || m >= hi {
             break;
         }
-        if g(mid) > tt {
-            lo = mid;
-        } else {
-            hi = mid;
+        match make(m).solve() {
+            Some(s) if s.t_min > tt => lo = m,
+            Some(s) => {
+                hi = m;
+                best = Some(s.best);
+                if (s.t_min - tt).abs() <= 1e-13 * (1.0 + tt) {
+                    break;
+                }
+            }
+            None => lo = m,
         }
     }
-    let vc = 0.5 * (lo + hi);
-    let t4 = tt - 2.0 * tacc(vc);
-    Some((vc, t4.max(0.0)))
+    let pr = best?;
+    ((pr.duration() - tt).abs() <= 1e-10 * (1.0 + tt) && pb.accept(&pr)).then_some(pr)
+}
+
+/// A valid profile of duration `tt` (not shorter than the minimum), if found.
+pub(crate) fn with_duration(pb: &Problem, tt: f64) -> Option<Profile> {
+    if let Some(p) = by_cruise(pb, tt) {
+        return Some(p);
+    }
+    by_reduced_limit(pb, tt, 0).or_else(|| by_reduced_limit(pb, tt, 1))
 }

@@ -3,10 +3,11 @@
 
 use crate::brake::{position_brake, velocity_interface_brake, Brake};
 use crate::profile::{integrate, Profile};
-use crate::{step1, step2, velocity, KinState, Limits, Options, OtgError, Sync, Trajectory};
+use crate::step1::{Problem, Step1};
+use crate::{step2, velocity, KinState, Limits, Options, OtgError, Sync, Trajectory};
 
 /// Relative tolerance for reaching a target state when verifying profiles.
-pub(crate) const REACH_TOL: f64 = 1e-10;
+pub(crate) const REACH_TOL: f64 = 5e-10;
 
 pub(crate) fn validate_limits<const N: usize>(l: &Limits<N>) -> Result<(), OtgError> {
     for j in 0..N {
@@ -128,9 +129,10 @@ impl<const N: usize> Trajectory<N> {
         }
         let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
         let mut finals = [[0.0; 3]; N];
-        let mut tmin = [0.0f64; N];
         let mut brake_t = [0.0f64; N];
-        let mut post = [(0.0, 0.0, 0.0); N];
+        let mut heads = [Profile::new(0.0, 0.0, 0.0); N];
+        let mut steps: [Option<Step1>; N] = [None; N];
+        let mut problems: [Option<Problem>; N] = [None; N];
         let mut t_sync = 0.0f64;
         for j in 0..N {
             let (p0, v0, a0) = (current.p[j], current.v[j], current.a[j]);
@@ -141,45 +143,86 @@ impl<const N: usize> Trajectory<N> {
             }
             let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
             let b = position_brake(v0, a0, vm, am, jm);
-            let (mut pr, s) = start_with_brake(p0, v0, a0, &b);
+            let (head, s) = start_with_brake(p0, v0, a0, &b);
+            heads[j] = head;
             brake_t[j] = b.duration();
-            post[j] = s;
-            let (pf, vf, af) = (target.p[j], target.v[j], target.a[j]);
-            if s.1 != 0.0 || s.2 != 0.0 || vf != 0.0 || af != 0.0 {
-                // Stage 1 supports rest-to-rest motion only.
-                return Err(OtgError::NoSolution { joint: j });
+            let pb = Problem {
+                p0: s.0,
+                v0: s.1,
+                a0: s.2,
+                pf: target.p[j],
+                vf: target.v[j],
+                af: target.a[j],
+                vm,
+                am,
+                jm,
+            };
+            let st = pb.solve().ok_or_else(|| {
+                if std::env::var("OTG_DBG").is_ok() {
+                    eprintln!("step1 fail {pb:?}");
+                }
+                OtgError::NoSolution { joint: j }
+            })?;
+            t_sync = t_sync.max(brake_t[j] + st.t_min);
+            if !(t_sync < 1e12) {
+                return Err(OtgError::DurationTooLong { joint: j, duration: t_sync });
             }
-            let dist = pf - s.0;
-            let (vc, t4) = step1::rest_to_rest(dist, vm, am, jm);
-            step1::push_rest_profile(&mut pr, dist.signum(), vc, t4, am, jm);
-            tmin[j] = pr.duration();
-            profiles[j] = pr;
-            finals[j] = [pf, vf, af];
-            t_sync = t_sync.max(tmin[j]);
+            steps[j] = Some(st);
+            problems[j] = Some(pb);
+            finals[j] = [target.p[j], target.v[j], target.a[j]];
         }
         if options.sync == Sync::None {
+            for j in 0..N {
+                if let Some(st) = &steps[j] {
+                    let mut pr = heads[j];
+                    pr.extend(&st.best);
+                    profiles[j] = pr;
+                }
+            }
             let t = adjust_duration(t_sync, options);
             return Ok(Self::from_profiles(&profiles, &finals, t));
         }
-        let t_sync = adjust_duration(t_sync, options);
+        // Earliest duration >= every minimum, not blocked for any joint.
+        let mut t_sync = adjust_duration(t_sync, options);
+        for _ in 0..4 * N + 4 {
+            let mut moved = false;
+            for j in 0..N {
+                if let Some(st) = &steps[j] {
+                    let tt = t_sync - brake_t[j];
+                    for &(l, r) in &st.blocked[..st.n_blocked] {
+                        if tt > l && tt < r {
+                            t_sync = adjust_duration(r + brake_t[j], options);
+                            moved = true;
+                        }
+                    }
+                }
+            }
+            if !moved {
+                break;
+            }
+        }
         for j in 0..N {
-            if !options.enabled[j] || tmin[j] == t_sync {
-                continue;
-            }
-            let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
-            let s = post[j];
-            let dist = target.p[j] - s.0;
-            let b = position_brake(current.v[j], current.a[j], vm, am, jm);
-            let (mut pr, _) = start_with_brake(current.p[j], current.v[j], current.a[j], &b);
-            let (vc_min, _) = step1::rest_to_rest(dist, vm, am, jm);
+            let (Some(st), Some(pb)) = (&steps[j], &problems[j]) else { continue };
             let tt = t_sync - brake_t[j];
-            let (vc, t4) = step2::rest_to_rest_with_duration(dist, tt, vc_min, am, jm)
-                .ok_or(OtgError::NoSolution { joint: j })?;
-            if dist == 0.0 {
-                pr.push(t4, 0.0);
+            let close = |x: f64| (tt - x).abs() <= 1e-12 * (1.0 + t_sync);
+            let main = if close(st.t_min) {
+                st.best
+            } else if let Some(k) = (0..st.n_blocked).find(|&k| close(st.blocked[k].1)) {
+                st.right[k]
             } else {
-                step1::push_rest_profile(&mut pr, dist.signum(), vc, t4, am, jm);
-            }
+                step2::with_duration(pb, tt).ok_or_else(|| {
+                    if std::env::var("OTG_DBG").is_ok() {
+                        eprintln!(
+                            "step2 fail {pb:?} tt={tt} tmin={} blocked={:?}",
+                            st.t_min,
+                            &st.blocked[..st.n_blocked]
+                        );
+                    }
+                    OtgError::NoSolution { joint: j }
+                })?
+            };
+            let mut pr = heads[j];
+            pr.extend(&main);
             profiles[j] = pr;
         }
         for j in 0..N {
@@ -272,6 +315,9 @@ pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), O
     let ok = (p - fin[0]).abs() <= REACH_TOL * (1.0 + fin[0].abs())
         && (v - fin[1]).abs() <= REACH_TOL * (1.0 + fin[1].abs())
         && (a - fin[2]).abs() <= 1e-11 * (1.0 + fin[2].abs());
+    if !ok && std::env::var("OTG_DBG").is_ok() {
+        eprintln!("verify fail dp {:e} dv {:e} da {:e} {:?}", p - fin[0], v - fin[1], a - fin[2], pr);
+    }
     if ok {
         Ok(())
     } else {
