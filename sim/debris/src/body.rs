@@ -68,13 +68,22 @@ impl std::fmt::Debug for BodyProps {
 
 /// Why a shape/mass specification is invalid.
 #[derive(Debug, Clone, PartialEq)]
-pub struct PropsError(pub String);
+pub struct PropsError {
+    /// Field (relative to the debris entry), e.g. `shape.radius`.
+    pub field: String,
+    /// What is wrong.
+    pub reason: String,
+}
+
+fn perr(field: &str, reason: impl Into<String>) -> PropsError {
+    PropsError { field: field.to_string(), reason: reason.into() }
+}
 
 fn pos(name: &str, v: f64) -> Result<(), PropsError> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(PropsError(format!("{name} must be finite and > 0 (got {v})")))
+        Err(perr(name, format!("must be finite and > 0 (got {v})")))
     }
 }
 
@@ -107,15 +116,15 @@ impl BodyProps {
             }
             ShapeSpec::Convex { points } => {
                 if points.len() < 4 {
-                    return Err(PropsError("shape.points: a convex fragment needs at least 4 points".into()));
+                    return Err(perr("shape.points", "a convex fragment needs at least 4 points"));
                 }
                 let pts: Vec<PVec> = points.iter().map(|p| PVec::new(p[0], p[1], p[2])).collect();
                 let hull = SharedShape::convex_hull(&pts)
-                    .ok_or_else(|| PropsError("shape.points: degenerate convex hull".into()))?;
+                    .ok_or_else(|| perr("shape.points", "degenerate convex hull"))?;
                 let com = hull.mass_properties(1.0).local_com;
                 let pts: Vec<PVec> = pts.iter().map(|p| *p - com).collect();
                 SharedShape::convex_hull(&pts)
-                    .ok_or_else(|| PropsError("shape.points: degenerate convex hull".into()))?
+                    .ok_or_else(|| perr("shape.points", "degenerate convex hull"))?
             }
         };
         let mp = shape.mass_properties(1.0);
@@ -127,7 +136,7 @@ impl BodyProps {
                     pos(&format!("inertia[{i}]"), *v)?;
                 }
                 if d[0] + d[1] < d[2] || d[1] + d[2] < d[0] || d[0] + d[2] < d[1] {
-                    return Err(PropsError("inertia: violates the triangle inequality".into()));
+                    return Err(perr("inertia", "principal moments violate the triangle inequality"));
                 }
                 Matrix3::from_diagonal(&Vector3::from(d))
             }
@@ -136,8 +145,7 @@ impl BodyProps {
                 Matrix3::from_column_slice(&m) * (mass / volume)
             }
         };
-        let inv_inertia =
-            inertia.try_inverse().ok_or_else(|| PropsError("inertia: singular inertia tensor".into()))?;
+        let inv_inertia = inertia.try_inverse().ok_or_else(|| perr("inertia", "singular inertia tensor"))?;
         let bs = shape.compute_local_bounding_sphere();
         let bounding_radius = bs.center.length() + bs.radius;
         Ok(BodyProps { shape, mass, inertia, inv_inertia, bounding_radius })

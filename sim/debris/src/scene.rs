@@ -273,7 +273,7 @@ impl Scene {
             if ids.contains(&d.id) {
                 return Err(invalid(f("id"), format!("duplicate id {}", d.id)));
             }
-            BodyProps::new(&d.shape, d.mass, d.inertia).map_err(|e| invalid(f(""), e.0))?;
+            BodyProps::new(&d.shape, d.mass, d.inertia).map_err(|e| invalid(f(&e.field), e.reason))?;
             finite3(&f("p"), &d.p)?;
             finite3(&f("v"), &d.v)?;
             finite3(&f("w"), &d.w)?;
@@ -312,7 +312,14 @@ impl Scene {
                     if ids.contains(new_id) {
                         return Err(invalid(f("new_id"), format!("id {new_id} already in use")));
                     }
-                    BodyProps::new(fragment, *mass, *inertia).map_err(|e| invalid(f("fragment"), e.0))?;
+                    BodyProps::new(fragment, *mass, *inertia).map_err(|e| {
+                        let field = if e.field == "mass" {
+                            "mass".to_string()
+                        } else {
+                            format!("fragment.{}", e.field)
+                        };
+                        invalid(f(&field), e.reason)
+                    })?;
                     if *mass >= masses[k] {
                         return Err(invalid(f("mass"), "fragment mass must be smaller than the parent's"));
                     }

@@ -87,8 +87,10 @@ impl DebrisWorld {
         let mut rng = SmallRng::seed_from_u64(scene.seed);
         let mut debris = Vec::with_capacity(MAX_DEBRIS);
         for (i, d) in scene.debris.iter().enumerate() {
-            let props = BodyProps::new(&d.shape, d.mass, d.inertia)
-                .map_err(|e| SceneError::Invalid { field: format!("debris[{i}]"), reason: e.0 })?;
+            let props = BodyProps::new(&d.shape, d.mass, d.inertia).map_err(|e| SceneError::Invalid {
+                field: format!("debris[{i}].{}", e.field),
+                reason: e.reason,
+            })?;
             let q = UnitQuaternion::new_normalize(Quaternion::new(d.q[0], d.q[1], d.q[2], d.q[3]));
             let s = scene.perturbation.accel_bias_sigma;
             let bias = Vector3::new(gauss(&mut rng), gauss(&mut rng), gauss(&mut rng)) * s;
@@ -113,7 +115,10 @@ impl DebrisWorld {
                         id: *id,
                         new_id: *new_id,
                         props: BodyProps::new(fragment, *mass, *inertia).map_err(|e| {
-                            SceneError::Invalid { field: format!("events[{i}].fragment"), reason: e.0 }
+                            SceneError::Invalid {
+                                field: format!("events[{i}].fragment.{}", e.field),
+                                reason: e.reason,
+                            }
                         })?,
                         offset: v3(*offset),
                         dv: v3(*dv),
