@@ -58,26 +58,27 @@ impl Profile {
         (p, v, a)
     }
 
-    /// Whether the profile stays within `|v| <= vmax` and `|a| <= amax` (with a
+    /// Whether the profile stays within `vlo <= v <= vhi` and `|a| <= amax` (with a
     /// small relative tolerance) at every phase boundary and at every interior
     /// velocity extremum. `skip` leading phases (a braking pre-trajectory) are
     /// not checked.
     #[allow(dead_code)]
-    pub fn within_limits(&self, vmax: f64, amax: f64, skip: usize) -> bool {
-        let vt = vmax * (1.0 + 1e-9) + 1e-12;
+    pub fn within_limits(&self, vlo: f64, vhi: f64, amax: f64, skip: usize) -> bool {
+        let vt_hi = vhi + (vhi.abs() * 1e-9 + 1e-12);
+        let vt_lo = vlo - (vlo.abs() * 1e-9 + 1e-12);
         let at = amax * (1.0 + 1e-9) + 1e-12;
         let (mut p, mut v, mut a) = (self.p0, self.v0, self.a0);
         for i in 0..self.n {
             let (t, j) = (self.t[i], self.j[i]);
             if i >= skip {
-                if v.abs() > vt || a.abs() > at {
+                if v > vt_hi || v < vt_lo || a.abs() > at {
                     return false;
                 }
                 if j != 0.0 {
                     let tz = -a / j;
                     if tz > 0.0 && tz < t {
                         let vz = v + tz * (a + tz * j / 2.0);
-                        if vz.abs() > vt {
+                        if vz > vt_hi || vz < vt_lo {
                             return false;
                         }
                     }
@@ -86,6 +87,44 @@ impl Profile {
             (p, v, a) = integrate(t, p, v, a, j);
         }
         let _ = p;
-        v.abs() <= vt && a.abs() <= at
+        v <= vt_hi && v >= vt_lo && a.abs() <= at
     }
+}
+
+/// Limit check on a structural phase list (zero-length phases included, so
+/// indices keep their meaning): `|a| <= amax` everywhere; `|v| <= vmax` at the
+/// end of every phase from index `skip_v` on and at every interior velocity
+/// extremum of those phases. The first `skip_v` phases are exempt from the
+/// velocity check: they may still be correcting a start state whose velocity
+/// excursion is inevitable (e.g. right after a braking pre-trajectory).
+pub(crate) fn raw_within_limits(
+    v0: f64,
+    a0: f64,
+    t: &[f64],
+    j: &[f64],
+    vmax: f64,
+    amax: f64,
+    skip_v: usize,
+) -> bool {
+    let vt = vmax * (1.0 + 1e-9) + 1e-12;
+    let at = amax * (1.0 + 1e-9) + 1e-12;
+    let (mut v, mut a) = (v0, a0);
+    for i in 0..t.len() {
+        let (ti, ji) = (t[i], j[i]);
+        if i >= skip_v && ji != 0.0 {
+            let tz = -a / ji;
+            if tz > 0.0 && tz < ti {
+                let vz = v + tz * (a + tz * ji / 2.0);
+                if vz.abs() > vt {
+                    return false;
+                }
+            }
+        }
+        v += ti * (a + ti * ji / 2.0);
+        a += ti * ji;
+        if a.abs() > at || (i >= skip_v && v.abs() > vt) {
+            return false;
+        }
+    }
+    true
 }

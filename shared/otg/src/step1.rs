@@ -21,7 +21,7 @@
 //! verified by exact forward integration and limit checks before acceptance.
 
 use crate::poly::{real_roots, Lp, MAX_ROOTS};
-use crate::profile::{integrate, Profile};
+use crate::profile::{integrate, raw_within_limits, Profile};
 use crate::velocity;
 
 /// Most candidates collected per joint.
@@ -66,26 +66,25 @@ struct Cands {
 }
 
 impl Problem {
-    /// Velocity bound for checks: the limit, or the excursion that the start
-    /// state makes inevitable (e.g. after a brake that ends at the velocity
-    /// limit with an acceleration that must still be ramped back).
-    fn v_bound(&self) -> f64 {
-        let exc = (self.v0 + self.a0 * self.a0.abs() / (2.0 * self.jm)).abs();
-        self.vm.max(exc).max(self.v0.abs())
-    }
-
-    /// Verify a numeric profile: reaches the target and respects the limits.
+    /// Verify a numeric profile reaches the target (limits are checked in `build`).
     pub fn accept(&self, pr: &Profile) -> bool {
         let (p, v, a) = pr.end_state();
         (p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
             && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
             && (a - self.af).abs() <= 1e-11 * (1.0 + self.am)
-            && pr.within_limits(self.v_bound(), self.am, 0)
     }
 
-    /// Build a profile from phase durations (clamping rounding noise).
-    fn build(&self, t: &[f64], j: &[f64]) -> Option<Profile> {
+    /// Build a profile from structural phase durations (clamping rounding
+    /// noise) if it respects the limits (see [`raw_within_limits`]).
+    pub fn build(&self, t: &[f64], j: &[f64]) -> Option<Profile> {
         let scale: f64 = 1e-10 * (1.0 + t.iter().map(|x| x.abs()).sum::<f64>());
+        let mut tc = [0.0; 7];
+        for (k, &ti) in t.iter().enumerate() {
+            tc[k] = ti.max(0.0);
+        }
+        if !raw_within_limits(self.v0, self.a0, &tc[..t.len()], j, self.vm, self.am, 2) {
+            return None;
+        }
         let mut pr = Profile::new(self.p0, self.v0, self.a0);
         for (&ti, &ji) in t.iter().zip(j) {
             if !(ti >= -scale) || !ti.is_finite() {
@@ -97,16 +96,6 @@ impl Problem {
     }
 
     fn add(&self, c: &mut Cands, pr: Profile) {
-        if false {
-            {
-                let (mut p, mut v, mut a) = (pr.p0, pr.v0, pr.a0);
-                for i in 0..pr.n {
-                    (p, v, a) = integrate(pr.t[i], p, v, a, pr.j[i]);
-                    eprint!("[j{} v{} a{}] ", pr.j[i], v - self.vm, a);
-                }
-                eprintln!(" lim {}", pr.within_limits(self.vm, self.am, 0));
-            }
-        }
         if c.n < MAX_CAND && self.accept(&pr) {
             c.t[c.n] = pr.duration();
             c.p[c.n] = pr;
@@ -139,6 +128,55 @@ impl Problem {
                 self.add(c, pr);
             }
         }
+    }
+
+    /// Step-2 families with a prescribed duration `tt` (five merged phases
+    /// `dJ, 0, −dJ, 0, dJ` where one hold is at a free acceleration level),
+    /// parameterized by `w = A1 − A2`; returns a verified profile of duration `tt`.
+    pub fn with_duration_holds(&self, tt: f64) -> Option<Profile> {
+        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let (v0, a0, vf, af, am, jm) = (self.v0, self.a0, self.vf, self.af, self.am, self.jm);
+        let dv = vf - v0;
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let js = [jd, 0.0, -jd, 0.0, jd];
+            let kk = tt - (af - a0) / jd;
+            if kk == 0.0 {
+                continue;
+            }
+            let w = Lp::mono(1.0, 1);
+            let w2 = w.mul(&w);
+            let hold = w.scale(-2.0 / jd).add_const(tt - (af - a0) / jd);
+            let base = (af * af - a0 * a0) / (2.0 * jd);
+            let (lo, hi) =
+                if d > 0.0 { (0.0, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), 0.0) };
+            for which in 0..2 {
+                let (a1, a2, ts);
+                if which == 0 {
+                    a1 = w2.scale(1.0 / jd).add_const(dv - base).scale(1.0 / kk);
+                    a2 = a1.add(&w.scale(-1.0));
+                    ts = [
+                        a1.add_const(-a0).scale(1.0 / jd),
+                        hold,
+                        w.scale(1.0 / jd),
+                        Lp::ZERO,
+                        a2.scale(-1.0).add_const(af).scale(1.0 / jd),
+                    ];
+                } else {
+                    a2 = w2.scale(-1.0 / jd).add_const(dv - base).scale(1.0 / kk);
+                    a1 = a2.add(&w);
+                    ts = [
+                        a1.add_const(-a0).scale(1.0 / jd),
+                        Lp::ZERO,
+                        w.scale(1.0 / jd),
+                        hold,
+                        a2.scale(-1.0).add_const(af).scale(1.0 / jd),
+                    ];
+                }
+                self.family(&mut c, &ts, &js, lo, hi);
+            }
+        }
+        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
     }
 
     /// All step-1 candidates; `None` if there is none (numerical failure).

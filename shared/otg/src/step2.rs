@@ -9,6 +9,8 @@
 //! time-optimal profile under a reduced jerk or acceleration limit whose
 //! minimum duration equals the prescribed one.
 
+#[allow(unused_imports)]
+use crate::profile::raw_within_limits;
 use crate::profile::{integrate, Profile};
 use crate::step1::Problem;
 use crate::velocity::{self, VelProfile};
@@ -33,16 +35,10 @@ fn cruise(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, VelPr
     Some((f, h1, t4.max(0.0), h2))
 }
 
-fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Profile {
-    let mut pr = Profile::new(pb.p0, pb.v0, pb.a0);
-    for i in 0..3 {
-        pr.push(h1.t[i], h1.j[i]);
-    }
-    pr.push(t4, 0.0);
-    for i in 0..3 {
-        pr.push(h2.t[i], h2.j[i]);
-    }
-    pr
+fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Option<Profile> {
+    let t = [h1.t[0], h1.t[1], h1.t[2], t4, h2.t[0], h2.t[1], h2.t[2]];
+    let j = [h1.j[0], h1.j[1], h1.j[2], 0.0, h2.j[0], h2.j[1], h2.j[2]];
+    pb.build(&t, &j)
 }
 
 fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
@@ -79,9 +75,10 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
                 if ok {
                     for x in [a, b] {
                         if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
-                            let pr = cruise_profile(pb, &h1, t4, &h2);
-                            if pb.accept(&pr) {
-                                return Some(pr);
+                            if let Some(pr) = cruise_profile(pb, &h1, t4, &h2) {
+                                if pb.accept(&pr) {
+                                    return Some(pr);
+                                }
                             }
                         }
                     }
@@ -93,17 +90,24 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     None
 }
 
-/// Reduce the jerk (`which = 0`) or acceleration (`which = 1`) limit until the
+/// Reduce the jerk (`which = 0`), acceleration (`1`) or velocity (`2`) limit until the
 /// time-optimal duration equals `tt`.
 fn by_reduced_limit(pb: &Problem, tt: f64, which: usize) -> Option<Profile> {
-    let full = if which == 0 { pb.jm } else { pb.am };
-    let floor = if which == 0 { 0.0 } else { pb.a0.abs().max(pb.af.abs()) };
+    let full = [pb.jm, pb.am, pb.vm][which];
+    let floor = [
+        0.0,
+        pb.a0.abs().max(pb.af.abs()),
+        pb.v0
+            .abs()
+            .max(pb.vf.abs() + pb.af * pb.af / (2.0 * pb.jm))
+            .max(pb.v0 + pb.a0 * pb.a0.abs() / (2.0 * pb.jm)),
+    ][which];
     let make = |x: f64| {
         let mut q = Problem { ..*pb };
-        if which == 0 {
-            q.jm = x;
-        } else {
-            q.am = x;
+        match which {
+            0 => q.jm = x,
+            1 => q.am = x,
+            _ => q.vm = x,
         }
         q
     };
@@ -135,5 +139,10 @@ pub(crate) fn with_duration(pb: &Problem, tt: f64) -> Option<Profile> {
     if let Some(p) = by_cruise(pb, tt) {
         return Some(p);
     }
-    by_reduced_limit(pb, tt, 0).or_else(|| by_reduced_limit(pb, tt, 1))
+    if let Some(p) = pb.with_duration_holds(tt) {
+        return Some(p);
+    }
+    by_reduced_limit(pb, tt, 0)
+        .or_else(|| by_reduced_limit(pb, tt, 1))
+        .or_else(|| by_reduced_limit(pb, tt, 2))
 }

@@ -124,3 +124,33 @@ fn oracle_millions() {
     eprintln!("3 DoF: {c} problems, {m} duration mismatches, {f} failures");
     assert_eq!((m, f), (0, 0));
 }
+
+#[test]
+#[ignore = "debug helper"]
+fn dbg_mismatch_per_joint() {
+    let mut rng = SmallRng::seed_from_u64(42);
+    let mut otg1 = Ruckig::<1, ThrowErrorHandler>::new(None, 0.001);
+    let mut otg3 = Ruckig::<3, ThrowErrorHandler>::new(None, 0.001);
+    let mut shown = 0;
+    for _ in 0..200_000 {
+        let (s, t, l) = draw::<3>(&mut rng);
+        let Some(td) = oracle_duration(&mut otg3, &s, &t, &l) else { continue };
+        let Ok(tr) = Trajectory::calculate(&s, &t, &l, &Options::default()) else { continue };
+        if (tr.duration() - td).abs() <= 1e-8 * td.max(1e-3) {
+            continue;
+        }
+        eprintln!("== ours {} oracle {}", tr.duration(), td);
+        for j in 0..3 {
+            let s1 = KinState { p: [s.p[j]], v: [s.v[j]], a: [s.a[j]] };
+            let t1 = KinState { p: [t.p[j]], v: [t.v[j]], a: [t.a[j]] };
+            let l1 = Limits { v_max: [l.v_max[j]], a_max: [l.a_max[j]], j_max: [l.j_max[j]] };
+            let o = Trajectory::calculate(&s1, &t1, &l1, &Options::default()).map(|x| x.duration());
+            let r = oracle_duration(&mut otg1, &s1, &t1, &l1);
+            eprintln!("  j{j} ours {o:?} oracle {r:?}  {s1:?} {t1:?} {l1:?}");
+        }
+        shown += 1;
+        if shown > 3 {
+            break;
+        }
+    }
+}
