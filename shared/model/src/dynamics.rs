@@ -174,12 +174,12 @@ impl ArmModel {
         }
     }
 
-    /// Kinetic energy `½ q̇ᵀ M(q) q̇` [J].
+    /// Kinetic energy `½ q̇ᵀ M(q) q̇` (J).
     pub fn kinetic_energy(&self, q: &JVec, qd: &JVec) -> f64 {
         0.5 * qd.dot(&(self.mass_matrix(q) * qd))
     }
 
-    /// Potential energy `U(q) = −Σ_b m_b g · c_b(q)` [J] in the model's gravity
+    /// Potential energy `U(q) = −Σ_b m_b g · c_b(q)` (J) in the model's gravity
     /// field (`c_b` = base-frame centre of mass of body `b`).
     pub fn potential_energy(&self, q: &JVec) -> f64 {
         let fr = self.body_frames(q);

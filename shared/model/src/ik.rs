@@ -26,13 +26,13 @@ pub struct IkOptions {
     /// Additional attempts from random in-limit configurations after the first
     /// attempt (which starts at `q0`).
     pub restarts: usize,
-    /// Position tolerance on `|p_target − p|` [m].
+    /// Position tolerance on `|p_target − p|` (m).
     pub pos_tol: f64,
-    /// Orientation tolerance on the rotation-error angle [rad].
+    /// Orientation tolerance on the rotation-error angle (rad).
     pub rot_tol: f64,
     /// Initial damping `λ` (units of the Jacobian, i.e. m or 1).
     pub damping: f64,
-    /// Largest joint change per iteration [rad].
+    /// Largest joint change per iteration (rad).
     pub max_step: f64,
     /// Seed for the restart configurations.
     pub seed: u64,
@@ -61,9 +61,9 @@ pub struct IkSolution {
     pub iterations: usize,
     /// Number of random restarts used (0 = converged from `q0`).
     pub restarts: usize,
-    /// Final position error [m].
+    /// Final position error (m).
     pub pos_err: f64,
-    /// Final orientation error [rad].
+    /// Final orientation error (rad).
     pub rot_err: f64,
 }
 
@@ -76,9 +76,9 @@ pub enum IkError {
     Unreachable {
         /// `sqrt(pos_err² + rot_err²)` of the best configuration found.
         residual: f64,
-        /// Best position error [m].
+        /// Best position error (m).
         pos_err: f64,
-        /// Best orientation error [rad].
+        /// Best orientation error (rad).
         rot_err: f64,
         /// Best configuration found (within limits).
         best_q: JVec,

@@ -16,6 +16,21 @@
 //!
 //! Units are SI (m, kg, s, rad, N m). All kinematic and dynamic queries (and IK)
 //! are allocation-free and work on nalgebra fixed-size types.
+//!
+//! ```
+//! use dkrrt_model::{ArmModel, IkOptions, JVec};
+//!
+//! let arm = ArmModel::default_arm(); // gravity defaults to zero (in orbit)
+//! let q = JVec::from_column_slice(&[0.3, -0.5, 1.0, 0.2, -0.4, 0.6]);
+//! let qd = JVec::repeat(0.05);
+//! let tau = arm.rnea(&q, &qd, &JVec::zeros()); // = C(q, q̇) q̇
+//! let qdd = arm.forward_dynamics(&q, &qd, &tau);
+//! assert!(qdd.norm() < 1e-9);
+//!
+//! let target = arm.fk(&q);
+//! let sol = arm.ik(&target, &JVec::zeros(), &IkOptions::default()).unwrap();
+//! assert!(sol.pos_err < 1e-5);
+//! ```
 
 pub mod dynamics;
 pub mod ik;

@@ -13,13 +13,13 @@ use crate::{JVec, NJ};
 /// Continuous joints have `q_min = −∞`, `q_max = +∞`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct JointLimits {
-    /// Lower position limit [rad] (URDF `lower`).
+    /// Lower position limit (rad) (URDF `lower`).
     pub q_min: JVec,
-    /// Upper position limit [rad] (URDF `upper`).
+    /// Upper position limit (rad) (URDF `upper`).
     pub q_max: JVec,
-    /// Speed limit, symmetric [rad/s] (URDF `velocity`).
+    /// Speed limit, symmetric (rad/s) (URDF `velocity`).
     pub v_max: JVec,
-    /// Torque limit, symmetric [N m] (URDF `effort`).
+    /// Torque limit, symmetric (N m) (URDF `effort`).
     pub tau_max: JVec,
 }
 
@@ -48,11 +48,11 @@ impl JointLimits {
 pub struct LinkCapsule {
     /// Index of the moving link (0 = child of the first actuated joint).
     pub link: usize,
-    /// First segment endpoint in the link frame [m].
+    /// First segment endpoint in the link frame (m).
     pub a: Point3<f64>,
-    /// Second segment endpoint in the link frame [m].
+    /// Second segment endpoint in the link frame (m).
     pub b: Point3<f64>,
-    /// Radius [m].
+    /// Radius (m).
     pub radius: f64,
 }
 
@@ -67,11 +67,11 @@ impl LinkCapsule {
 /// attached to it by fixed joints), expressed in that link's URDF frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinkInertial {
-    /// Mass [kg].
+    /// Mass (kg).
     pub mass: f64,
-    /// Centre of mass in the link frame [m].
+    /// Centre of mass in the link frame (m).
     pub com: Vector3<f64>,
-    /// Rotational inertia about the centre of mass, link-frame axes [kg m²].
+    /// Rotational inertia about the centre of mass, link-frame axes (kg m²).
     pub inertia: Matrix3<f64>,
 }
 
@@ -140,12 +140,12 @@ impl ArmModel {
         &self.limits
     }
 
-    /// Gravity acceleration in the base frame [m/s²] (default zero: free fall / orbit).
+    /// Gravity acceleration in the base frame (m/s²) (default zero: free fall / orbit).
     pub fn gravity(&self) -> &Vector3<f64> {
         &self.gravity
     }
 
-    /// Set the gravity acceleration vector in the base frame [m/s²], e.g.
+    /// Set the gravity acceleration vector in the base frame (m/s²), e.g.
     /// `Vector3::new(0.0, 0.0, -9.81)` for a ground test bed.
     pub fn set_gravity(&mut self, g: Vector3<f64>) {
         self.gravity = g;
@@ -161,7 +161,7 @@ impl ArmModel {
         &self.inertials
     }
 
-    /// Total mass of the moving bodies [kg].
+    /// Total mass of the moving bodies (kg).
     pub fn total_mass(&self) -> f64 {
         self.inertials.iter().map(|l| l.mass).sum()
     }

@@ -40,11 +40,11 @@ pub fn mul_rz(r: &Matrix3<f64>, q: f64) -> Matrix3<f64> {
 /// `[[i_o, [h]×], [[h]×ᵀ, m 1]]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpatialInertia {
-    /// Mass [kg].
+    /// Mass (kg).
     pub m: f64,
-    /// First mass moment `m c` [kg m].
+    /// First mass moment `m c` (kg m).
     pub h: Vector3<f64>,
-    /// Rotational inertia about the frame origin [kg m²].
+    /// Rotational inertia about the frame origin (kg m²).
     pub i_o: Matrix3<f64>,
 }
 
@@ -72,13 +72,28 @@ impl SpatialInertia {
     #[inline(always)]
     pub fn to_parent(&self, r: &Matrix3<f64>, p: &Vector3<f64>) -> SpatialInertia {
         let hr = r * self.h;
-        let i_rot = r * self.i_o * r.transpose();
-        let px = skew(p);
-        let hx = skew(&hr);
-        // i_p = R i_o Rᵀ − m [p]×² − [p]×[Rh]× − [Rh]×[p]×
-        let pxhx = px * hx;
-        let i_p = i_rot - px * px * self.m - pxhx - pxhx.transpose();
-        SpatialInertia { m: self.m, h: hr + p * self.m, i_o: i_p }
+        // R i_o Rᵀ, computing only the 6 unique entries of the symmetric result.
+        let a = r * self.i_o;
+        let d = |i: usize, j: usize| a[(i, 0)] * r[(j, 0)] + a[(i, 1)] * r[(j, 1)] + a[(i, 2)] * r[(j, 2)];
+        let (xx, yy, zz, xy, xz, yz) = (d(0, 0), d(1, 1), d(2, 2), d(0, 1), d(0, 2), d(1, 2));
+        // i_p = R i_o Rᵀ − m [p]×² − [p]×[Rh]× − [Rh]×[p]×, using [a]×[b]× = b aᵀ − (a·b) 1:
+        //     = R i_o Rᵀ − m (p pᵀ − |p|² 1) − (h pᵀ + p hᵀ) + 2 (p·h) 1   (h = R h_c)
+        let m = self.m;
+        let diag = m * p.norm_squared() + 2.0 * p.dot(&hr);
+        let e = |i: usize, j: usize| -m * p[i] * p[j] - hr[i] * p[j] - p[i] * hr[j];
+        let (exy, exz, eyz) = (xy + e(0, 1), xz + e(0, 2), yz + e(1, 2));
+        let i_p = Matrix3::new(
+            xx + e(0, 0) + diag,
+            exy,
+            exz,
+            exy,
+            yy + e(1, 1) + diag,
+            eyz,
+            exz,
+            eyz,
+            zz + e(2, 2) + diag,
+        );
+        SpatialInertia { m, h: hr + p * m, i_o: i_p }
     }
 
     /// Sum of two inertias expressed in the same frame.

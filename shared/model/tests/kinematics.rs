@@ -50,9 +50,10 @@ fn link_poses_are_consistent_with_joint_axes_and_fk() {
                 let moved = m.link_poses(&(q + JVec::ith(k, 0.3)))[k] * local;
                 assert!((moved - on_axis).norm() < 1e-12, "{name}: joint {k} axis");
                 // Links before k do not move.
-                for b in 0..k {
-                    let other = m.link_poses(&(q + JVec::ith(k, 0.3)))[b];
-                    assert!(other.translation.vector == poses[b].translation.vector, "{name}");
+                let after = m.link_poses(&(q + JVec::ith(k, 0.3)));
+                for (before, moved) in poses.iter().zip(after.iter()).take(k) {
+                    assert!(before.translation.vector == moved.translation.vector, "{name}");
+                    assert!(before.rotation == moved.rotation, "{name}");
                 }
             }
             // Moving the last joint does not change the EE distance to its axis.

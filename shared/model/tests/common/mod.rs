@@ -15,7 +15,11 @@ pub fn rng(seed: u64) -> SmallRng {
 pub fn random_q(m: &ArmModel, r: &mut SmallRng) -> JVec {
     let l = m.limits();
     JVec::from_fn(|i, _| {
-        let (lo, hi) = if l.q_min[i].is_finite() { (l.q_min[i], l.q_max[i]) } else { (-3.14, 3.14) };
+        let (lo, hi) = if l.q_min[i].is_finite() {
+            (l.q_min[i], l.q_max[i])
+        } else {
+            (-std::f64::consts::PI, std::f64::consts::PI)
+        };
         r.random_range(lo..hi)
     })
 }
