@@ -40,6 +40,7 @@
 
 mod brake;
 mod error;
+mod online;
 mod poly;
 mod profile;
 mod step1;
@@ -47,8 +48,10 @@ mod step2;
 mod sync;
 mod trajectory;
 mod velocity;
+mod waypoints;
 
 pub use error::OtgError;
+pub use online::{Otg, Output, Status};
 pub use trajectory::{Extrema, Sample, Segment, Trajectory};
 
 /// Most intermediate waypoints a single waypoint trajectory may have.

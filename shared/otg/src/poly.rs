@@ -2,10 +2,13 @@
 //! used to solve the profile families' equations in closed form.
 
 /// Exponent offset: coefficient `c[k]` multiplies `x^(k - OFF)`.
-const OFF: i32 = 8;
-const LEN: usize = 17;
+const OFF: i32 = 4;
+pub(crate) const LEN: usize = 11;
 
-/// A Laurent polynomial `Σ c_e x^e` with exponents in `-8..=8`.
+/// A Laurent polynomial `Σ c_e x^e` with exponents in `-4..=6` (enough for
+/// every family: cubes of phase durations that are at most quadratic in, or
+/// have a `1/x` term of, the parameter). Products outside the range are a
+/// programming error; they are caught by a debug assertion and dropped.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Lp {
     c: [f64; LEN],
@@ -67,16 +70,22 @@ impl Lp {
             return Lp::ZERO;
         }
         let mut r = Lp::ZERO;
-        r.lo = self.lo + o.lo - OFF as usize;
-        r.hi = self.hi + o.hi - OFF as usize;
-        debug_assert!(r.hi < LEN);
+        let off = OFF as usize;
+        debug_assert!(self.lo + o.lo >= off && self.hi + o.hi - off < LEN);
+        if self.lo + o.lo < off {
+            return Lp::ZERO;
+        }
+        r.lo = self.lo + o.lo - off;
+        r.hi = (self.hi + o.hi - off).min(LEN - 1);
         for i in self.lo..=self.hi {
             let ci = self.c[i];
             if ci == 0.0 {
                 continue;
             }
             for k in o.lo..=o.hi {
-                r.c[i + k - OFF as usize] += ci * o.c[k];
+                if let Some(slot) = r.c.get_mut(i + k - off) {
+                    *slot += ci * o.c[k];
+                }
             }
         }
         r
@@ -161,7 +170,7 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
         _ => {}
     }
     // Critical points from the derivative.
-    let mut d = [0.0f64; 17];
+    let mut d = [0.0f64; LEN];
     for k in 1..n {
         d[k - 1] = c[k] * k as f64;
     }
@@ -195,17 +204,25 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
     cnt
 }
 
-/// Root in `[a, b]` where the sign changes: Newton steps safeguarded by bisection.
+/// Root in `[a, b]` where the sign changes: Newton steps safeguarded by
+/// bisection, stopping once the residual is at rounding-noise level.
 fn bracketed(c: &[f64], mut a: f64, mut b: f64, fa: f64) -> f64 {
     let neg_a = fa < 0.0;
-    let mut x = 0.5 * (a + b);
-    for _ in 0..100 {
-        let (mut f, mut df) = (0.0, 0.0);
+    // Start from the secant point (usually much closer than the midpoint).
+    let fb = horner(c, b);
+    let mut x = if fb != fa { a - fa * (b - a) / (fb - fa) } else { 0.5 * (a + b) };
+    if !(x > a && x < b) {
+        x = 0.5 * (a + b);
+    }
+    for _ in 0..64 {
+        let (mut f, mut df, mut m) = (0.0, 0.0, 0.0);
+        let ax = x.abs();
         for &ck in c.iter().rev() {
             df = df * x + f;
             f = f * x + ck;
+            m = m * ax + ck.abs();
         }
-        if f == 0.0 {
+        if f.abs() <= 4.0 * f64::EPSILON * m {
             return x;
         }
         if (f < 0.0) == neg_a {
@@ -215,7 +232,9 @@ fn bracketed(c: &[f64], mut a: f64, mut b: f64, fa: f64) -> f64 {
         }
         let xn = x - f / df;
         let next = if df != 0.0 && xn > a && xn < b { xn } else { 0.5 * (a + b) };
-        if (next - x).abs() <= 1e-15 * x.abs().max(1e-300) || b - a <= 2e-16 * a.abs().max(b.abs()) {
+        if (next - x).abs() <= 2.0 * f64::EPSILON * x.abs()
+            || b - a <= 2.0 * f64::EPSILON * a.abs().max(b.abs())
+        {
             return next;
         }
         x = next;
@@ -230,9 +249,10 @@ mod tests {
     #[test]
     fn roots_of_known_polynomials() {
         let mut out = [0.0; MAX_ROOTS];
-        // (x-1)(x-2)(x-3)(x+0.5) = x^4 - 5.5x^3 + 8x^2 + 0.5x - 3
-        let c = [-3.0, 0.5, 8.0, -5.5, 1.0];
+        // (x-1)(x-2)(x-3)(x+0.5) = x^4 - 5.5x^3 + 8x^2 - 0.5x - 3
+        let c = [-3.0, -0.5, 8.0, -5.5, 1.0];
         let n = real_roots(&c, -10.0, 10.0, &mut out);
+
         let mut r = out[..n].to_vec();
         r.sort_by(|a, b| a.total_cmp(b));
         assert_eq!(n, 4);

@@ -25,7 +25,7 @@ use crate::profile::{integrate, raw_within_limits, Profile};
 use crate::velocity;
 
 /// Most candidates collected per joint.
-const MAX_CAND: usize = 24;
+const MAX_CAND: usize = 12;
 
 /// One joint's step-1 result.
 #[derive(Clone, Copy, Debug)]
@@ -38,12 +38,6 @@ pub(crate) struct Step1 {
     /// Profiles of duration exactly `blocked[i].1`.
     pub right: [Profile; 2],
     pub n_blocked: usize,
-}
-
-impl Step1 {
-    pub fn is_blocked(&self, t: f64) -> bool {
-        t < self.t_min || self.blocked[..self.n_blocked].iter().any(|&(l, r)| t > l && t < r)
-    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -115,7 +109,7 @@ impl Problem {
             a = a.add(&t.scale(j));
         }
         let r = p.add_const(-self.pf);
-        let mut coeffs = [0.0; 17];
+        let mut coeffs = [0.0; crate::poly::LEN];
         let n = r.to_poly(&mut coeffs);
         let mut roots = [0.0; MAX_ROOTS];
         let nr = real_roots(&coeffs[..n], lo, hi, &mut roots);

@@ -171,6 +171,11 @@ impl<const N: usize> Trajectory<N> {
             problems[j] = Some(pb);
             finals[j] = [target.p[j], target.v[j], target.a[j]];
         }
+        if options.sync == Sync::Phase && brake_t.iter().all(|&b| b == 0.0) {
+            if let Some(tr) = phase_sync(current, target, limits, options) {
+                return Ok(tr);
+            }
+        }
         if options.sync == Sync::None {
             for j in 0..N {
                 if let Some(st) = &steps[j] {
@@ -323,4 +328,83 @@ pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), O
     } else {
         Err(OtgError::NoSolution { joint })
     }
+}
+
+/// Phase synchronization: if every enabled joint's start and target state
+/// are the same multiple `λ_j` of one reference joint's (largest move), all
+/// joints follow the reference profile scaled by `λ_j` — a straight line in
+/// joint space. The reference is solved under the tightest scaled limits
+/// `min_j limit_j/|λ_j|`. `None` when the states are not collinear.
+fn phase_sync<const N: usize>(
+    current: &KinState<N>,
+    target: &KinState<N>,
+    limits: &Limits<N>,
+    options: &Options<N>,
+) -> Option<Trajectory<N>> {
+    let k = (0..N)
+        .filter(|&j| options.enabled[j])
+        .max_by(|&a, &b| (target.p[a] - current.p[a]).abs().total_cmp(&(target.p[b] - current.p[b]).abs()))?;
+    let dk = target.p[k] - current.p[k];
+    if dk == 0.0 {
+        return None;
+    }
+    let (mut vr, mut ar, mut jr) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut lam = [0.0; N];
+    for j in 0..N {
+        if !options.enabled[j] {
+            continue;
+        }
+        let l = (target.p[j] - current.p[j]) / dk;
+        lam[j] = l;
+        let close = |x: f64, y: f64| (x - l * y).abs() <= 1e-12 * (1.0 + x.abs());
+        if !(close(current.v[j], current.v[k])
+            && close(current.a[j], current.a[k])
+            && close(target.v[j], target.v[k])
+            && close(target.a[j], target.a[k]))
+        {
+            return None;
+        }
+        if l != 0.0 {
+            vr = vr.min(limits.v_max[j] / l.abs());
+            ar = ar.min(limits.a_max[j] / l.abs());
+            jr = jr.min(limits.j_max[j] / l.abs());
+        }
+    }
+    let pb = Problem {
+        p0: current.p[k],
+        v0: current.v[k],
+        a0: current.a[k],
+        pf: target.p[k],
+        vf: target.v[k],
+        af: target.a[k],
+        vm: vr,
+        am: ar,
+        jm: jr,
+    };
+    if validate_target_va(k, pb.vf, pb.af, vr, ar, jr).is_err()
+        || current.v[k].abs() > vr
+        || current.a[k].abs() > ar
+    {
+        return None;
+    }
+    let st = pb.solve()?;
+    let t = adjust_duration(st.t_min, options);
+    let main = if t == st.t_min { st.best } else { step2::with_duration(&pb, t)? };
+    let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
+    let mut finals = [[0.0; 3]; N];
+    for j in 0..N {
+        if !options.enabled[j] {
+            profiles[j] = hold_profile(current.p[j], current.v[j], current.a[j]);
+            finals[j] = [current.p[j], current.v[j], current.a[j]];
+            continue;
+        }
+        let mut pr = Profile::new(current.p[j], current.v[j], current.a[j]);
+        for i in 0..main.n {
+            pr.push(main.t[i], main.j[i] * lam[j]);
+        }
+        finals[j] = [target.p[j], target.v[j], target.a[j]];
+        verify(&pr, &finals[j], j).ok()?;
+        profiles[j] = pr;
+    }
+    Some(Trajectory::from_profiles(&profiles, &finals, main.duration().max(t)))
 }

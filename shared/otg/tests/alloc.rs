@@ -28,3 +28,29 @@ fn calculate_and_sample_allocate_nothing() {
     assert_eq!(st.allocs, 0, "{st:?}");
     assert_eq!(st.reallocs, 0, "{st:?}");
 }
+
+#[test]
+fn online_update_and_waypoints_allocate_nothing() {
+    use dkrrt_otg::Otg;
+    let lim = Limits { v_max: [1.0; 6], a_max: [2.0; 6], j_max: [5.0; 6] };
+    let mut otg = Otg::new(lim, Options::default(), 0.001).unwrap();
+    let target = KinState::rest([1.0, -1.0, 0.5, 2.0, -0.3, 0.0]);
+    let wps = [[0.5, -0.5, 0.3, 1.0, -0.1, 0.1], [0.8, -0.8, 0.4, 1.5, -0.2, 0.0]];
+    let (r, st) = count(|| {
+        let mut s = KinState::rest([0.0; 6]);
+        for _ in 0..200 {
+            s = otg.update(&s, &target).unwrap().state;
+        }
+        let w = Trajectory::calculate_waypoints(
+            &KinState::rest([0.0; 6]),
+            &wps,
+            &target,
+            &lim,
+            &Options::default(),
+        )
+        .unwrap();
+        s.p[0] + w.duration()
+    });
+    assert!(r.is_finite());
+    assert_eq!(st.allocs, 0, "{st:?}");
+}

@@ -1,0 +1,165 @@
+//! Options, synchronization modes, online update, waypoints and robustness.
+
+mod common;
+
+use common::check_traj;
+use dkrrt_otg::{KinState, Limits, Options, Otg, OtgError, Status, Sync, Trajectory};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+fn lim7() -> Limits<7> {
+    Limits {
+        v_max: [1.0, 1.2, 0.8, 2.0, 1.5, 1.0, 3.0],
+        a_max: [2.0, 3.0, 1.5, 4.0, 2.5, 2.0, 5.0],
+        j_max: [10.0, 12.0, 8.0, 20.0, 15.0, 9.0, 30.0],
+    }
+}
+
+#[test]
+fn online_update_reaches_target_and_retargets() {
+    let lim = lim7();
+    let mut otg = Otg::new(lim, Options::default(), 0.001).unwrap();
+    let mut state = KinState { p: [0.0; 7], v: [0.1, -0.2, 0.0, 0.3, 0.0, 0.1, 0.5], a: [0.0; 7] };
+    let mut target = KinState::rest([0.5, -0.4, 0.2, 1.0, -1.0, 0.3, 2.0]);
+    let mut ticks = 0;
+    let mut recalcs = 0;
+    loop {
+        let out = otg.update(&state, &target).unwrap();
+        recalcs += out.new_calculation as usize;
+        state = out.state;
+        ticks += 1;
+        if ticks == 300 {
+            target.p[0] = -0.5; // retarget while moving
+        }
+        if out.status == Status::Finished {
+            break;
+        }
+        assert!(ticks < 100_000);
+    }
+    assert_eq!(recalcs, 2);
+    for j in 0..7 {
+        assert!((state.p[j] - target.p[j]).abs() < 1e-8 && state.v[j].abs() < 1e-8, "joint {j}");
+    }
+}
+
+#[test]
+fn phase_sync_is_a_straight_line() {
+    let lim = lim7();
+    let s = KinState::rest([0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
+    let d = [1.0, -0.5, 0.25, 2.0, -1.0, 0.0, 0.7];
+    let mut t = s;
+    for j in 0..7 {
+        t.p[j] += d[j];
+    }
+    let o = Options { sync: Sync::Phase, ..Options::default() };
+    let tr = Trajectory::calculate(&s, &t, &lim, &o).unwrap();
+    check_traj(&tr, &s, &t, &lim, true, 2000, false).unwrap();
+    for k in 1..50 {
+        let x = tr.at(tr.duration() * k as f64 / 50.0);
+        let f = (x.p[3] - s.p[3]) / d[3];
+        for j in 0..7 {
+            assert!((x.p[j] - s.p[j] - f * d[j]).abs() < 1e-9, "joint {j} off the line");
+        }
+    }
+    let tt = Trajectory::calculate(&s, &t, &lim, &Options::default()).unwrap();
+    assert!(tr.duration() >= tt.duration() - 1e-12);
+    // Not collinear (a joint has a non-proportional velocity): falls back to time sync.
+    let mut s2 = s;
+    s2.v[1] = 0.3;
+    let a = Trajectory::calculate(&s2, &t, &lim, &o).unwrap();
+    let b = Trajectory::calculate(&s2, &t, &lim, &Options::default()).unwrap();
+    assert_eq!(a.duration(), b.duration());
+}
+
+#[test]
+fn no_sync_and_disabled_joints() {
+    let lim = lim7();
+    let s = KinState::rest([0.0; 7]);
+    let t = KinState::rest([1.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    let o = Options { sync: Sync::None, ..Options::default() };
+    let tr = Trajectory::calculate(&s, &t, &lim, &o).unwrap();
+    check_traj(&tr, &s, &t, &lim, true, 1000, false).unwrap();
+    // Joint 1 arrives early and holds.
+    let early = tr.at(0.6 * tr.duration());
+    assert!((early.p[1] - 0.1).abs() < 1e-12 && early.v[1] == 0.0);
+    let mut o = Options::default();
+    o.enabled[0] = false;
+    let moving = KinState { p: [0.0; 7], v: [0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], a: [0.0; 7] };
+    let tr = Trajectory::calculate(&moving, &t, &lim, &o).unwrap();
+    let e = tr.at(tr.duration());
+    assert!((e.p[0] - 0.5 * tr.duration()).abs() < 1e-12, "disabled joint keeps its velocity");
+    assert!((e.p[1] - 0.1).abs() < 1e-8);
+}
+
+#[test]
+fn waypoints_pass_through_without_stopping_and_beat_stopping() {
+    let lim = lim7();
+    let s = KinState::rest([0.0; 7]);
+    let wps = [
+        [0.5, 0.3, 0.2, 0.8, -0.3, 0.2, 1.0],
+        [1.0, 0.6, 0.1, 1.6, -0.6, 0.4, 2.0],
+        [1.5, 0.8, 0.0, 2.4, -0.9, 0.5, 3.0],
+    ];
+    let t = KinState::rest([2.0, 1.0, -0.1, 3.0, -1.2, 0.6, 4.0]);
+    let o = Options::default();
+    let tr = Trajectory::calculate_waypoints(&s, &wps, &t, &lim, &o).unwrap();
+    check_traj(&tr, &s, &t, &lim, true, 5000, false).unwrap();
+    // Every waypoint is passed (by all joints at the same instant).
+    for w in &wps {
+        let hit = tr.joint_segments(0).iter().any(|sg| {
+            let x = tr.at(sg.t0);
+            (0..7).all(|j| (x.p[j] - w[j]).abs() < 1e-8)
+        });
+        assert!(hit, "waypoint {w:?} not passed");
+    }
+    // Without stopping: faster than stopping at each waypoint.
+    let mut stop = 0.0;
+    let mut prev = s;
+    for w in wps.iter().map(|w| KinState::rest(*w)).chain([t]) {
+        stop += Trajectory::calculate(&prev, &w, &lim, &o).unwrap().duration();
+        prev = w;
+    }
+    assert!(tr.duration() < stop, "{} vs {stop}", tr.duration());
+    eprintln!("waypoints: {:.4} s, stopping at each: {stop:.4} s", tr.duration());
+    let too_many = [[0.0; 7]; dkrrt_otg::MAX_WAYPOINTS + 1];
+    assert!(matches!(
+        Trajectory::calculate_waypoints(&s, &too_many, &t, &lim, &o),
+        Err(OtgError::TooManyWaypoints { .. })
+    ));
+}
+
+/// Garbage input of every kind: never a panic; an Ok result is always valid.
+#[test]
+fn never_panics_on_garbage() {
+    let mut rng = SmallRng::seed_from_u64(99);
+    let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, 1e300, -1e300, 1e-300, 5e-324];
+    let pick = |rng: &mut SmallRng| {
+        if rng.random_bool(0.3) {
+            specials[rng.random_range(0..specials.len())]
+        } else {
+            rng.random_range(-10.0..10.0)
+        }
+    };
+    for _ in 0..20_000 {
+        let mut s = KinState::<3>::default();
+        let mut t = KinState::<3>::default();
+        let mut l = Limits { v_max: [0.0; 3], a_max: [0.0; 3], j_max: [0.0; 3] };
+        for j in 0..3 {
+            s.p[j] = pick(&mut rng);
+            s.v[j] = pick(&mut rng);
+            s.a[j] = pick(&mut rng);
+            t.p[j] = pick(&mut rng);
+            t.v[j] = pick(&mut rng);
+            t.a[j] = pick(&mut rng);
+            l.v_max[j] = pick(&mut rng).abs();
+            l.a_max[j] = pick(&mut rng).abs();
+            l.j_max[j] = pick(&mut rng).abs();
+        }
+        if let Ok(tr) = Trajectory::calculate(&s, &t, &l, &Options::default()) {
+            assert!(tr.duration().is_finite());
+            let e = tr.at(tr.duration());
+            assert!(e.p.iter().chain(&e.v).chain(&e.a).all(|x| x.is_finite()));
+        }
+        let _ = Trajectory::calculate_velocity(&s, &t.v, &t.a, &l, &Options::default());
+    }
+}
