@@ -5,6 +5,8 @@
 //! the field and the value (e.g. `tracker.kp[2] = -1: must be > 0`). A default
 //! scenario is embedded, so `dkrrt launch` needs no argument.
 
+pub mod arm;
+
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -325,11 +327,11 @@ mod tests {
         let e = s.validate(&arm()).unwrap_err().to_string();
         assert!(e.contains("tracker.kp[2]") && e.contains("-1"), "{e}");
 
-        let text = DEFAULT_SCENARIO.replace("q = [0.8,", "q = [7.0,");
+        let text = DEFAULT_SCENARIO.replace("q = [0.35,", "q = [7.0,");
         let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
         assert!(e.contains("goal.q[0]") && e.contains("joint limits"), "{e}");
 
-        let text = DEFAULT_SCENARIO.replace("v_max = [0.6,", "v_max = [1.6,");
+        let text = DEFAULT_SCENARIO.replace("v_max = [0.10,", "v_max = [1.6,");
         let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
         assert!(e.contains("motion.v_max[0]") && e.contains("velocity limit"), "{e}");
     }

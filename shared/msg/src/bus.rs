@@ -277,3 +277,49 @@ impl<T: Topic> Sub<T> {
         Ok(n)
     }
 }
+
+/// Rate-limited heartbeat publisher (every process sends one at `hz`).
+pub struct HeartbeatTx {
+    port: Pub<Heartbeat>,
+    period_ns: u64,
+    next_ns: u64,
+    msg: Heartbeat,
+}
+
+impl HeartbeatTx {
+    pub fn new(bus: &Bus, source: Source, hz: f64) -> Result<HeartbeatTx, BusError> {
+        let port = bus.publisher::<Heartbeat>(source)?;
+        let mut msg = <Heartbeat as Zeroed>::zeroed();
+        msg.header = Header::new(source);
+        Ok(HeartbeatTx { port, period_ns: (1e9 / hz.max(0.1)) as u64, next_ns: 0, msg })
+    }
+
+    /// Sends a heartbeat if one is due at `now_ns` (CLOCK_MONOTONIC), or if `force`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn maybe_send(
+        &mut self,
+        now_ns: u64,
+        force: bool,
+        stamp_ns: u64,
+        state: ProcessState,
+        ticks: u64,
+        deadline_misses: u64,
+        rejected: u64,
+        safe_hold_entries: u64,
+    ) -> Result<bool, BusError> {
+        if !force && now_ns < self.next_ns {
+            return Ok(false);
+        }
+        self.next_ns = now_ns + self.period_ns;
+        let m = &mut self.msg;
+        m.header.stamp_ns = stamp_ns;
+        m.state = state as u32;
+        m.ticks = ticks;
+        m.deadline_misses = deadline_misses;
+        m.rejected = rejected;
+        m.safe_hold_entries = safe_hold_entries;
+        let mut msg = *m;
+        self.port.publish(&mut msg)?;
+        Ok(true)
+    }
+}

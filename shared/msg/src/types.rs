@@ -9,7 +9,7 @@ use iceoryx2::prelude::ZeroCopySend;
 /// Number of actuated joints of the arm.
 pub const NJ: usize = 6;
 /// Piecewise-constant-jerk segments per joint a trajectory message can carry.
-pub const MAX_SEGMENTS: usize = 64;
+pub const MAX_SEGMENTS: usize = 72;
 /// Debris objects an observation or forecast message can carry.
 pub const MAX_DEBRIS: usize = 32;
 /// Forecast steps per debris object.

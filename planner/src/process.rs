@@ -1,0 +1,166 @@
+//! The `dkrrt goto` process shell: waits for the robot state, plans a
+//! jerk-limited trajectory to the goal and publishes it; replans when a new
+//! [`Goal`] arrives on `dkrrt/goal` (from the reference it is on, so the
+//! motion stays continuous). If the tracker ends up holding short of the
+//! goal (a safe hold after stale state or an invalid trajectory) while the
+//! robot state flows again, it re-issues the goal from where the arm rests.
+//! Ends with the run.
+
+use std::path::Path;
+
+use dkrrt_config::arm::contract_limits;
+use dkrrt_config::Scenario;
+use dkrrt_msg::bus::{Bus, HeartbeatTx};
+use dkrrt_msg::*;
+use dkrrt_otg::{KinState, Limits};
+use dkrrt_rt::clock::mono_ns;
+use dkrrt_rt::signals;
+
+use crate::goto::plan;
+
+/// The goal counts as reached within this joint distance, rad.
+pub const GOAL_TOLERANCE_RAD: f64 = 1e-3;
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct GotoReport {
+    pub trajectories: u64,
+    pub last_duration_s: f64,
+    pub goals_received: u64,
+    /// Goals re-issued after the tracker stopped short of them (safe hold).
+    pub replans_after_hold: u64,
+    pub goals_rejected: u64,
+    pub states_rejected: u64,
+    pub plan_errors: Vec<String>,
+}
+
+/// Runs the trajectory source. `goal` overrides the scenario's goal.
+pub fn run(
+    run: &str,
+    sc: &Scenario,
+    goal: Option<[f64; NJ]>,
+    stats_path: Option<&Path>,
+) -> Result<GotoReport, String> {
+    signals::install();
+    let model = sc.load_arm().map_err(|e| e.to_string())?;
+    let lim = contract_limits(&model);
+    let goal = goal.unwrap_or(sc.goal.q);
+    let mut g = <Goal as Zeroed>::zeroed();
+    g.q = goal;
+    g.validate(&lim).map_err(|e| format!("goto: goal rejected: {e}"))?;
+    let bus = Bus::new(run, "goto").map_err(|e| e.to_string())?;
+    let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
+    let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
+    let mut cmd = <TorqueCommand as Zeroed>::zeroed();
+    let mut current_goal = goal;
+    let mut last_seq = 0u64;
+    let mut last_replan_ns = 0u64;
+    let mut traj_pub = bus.publisher::<Trajectory>(Source::TrajectorySource).map_err(|e| e.to_string())?;
+    let mut hb =
+        HeartbeatTx::new(&bus, Source::TrajectorySource, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
+    let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    let period_s = sc.period_ns() as f64 * 1e-9;
+
+    let mut state = <RobotState as Zeroed>::zeroed();
+    let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut have_state = false;
+    let mut next_goal = Some(goal);
+    let mut rep = GotoReport {
+        trajectories: 0,
+        last_duration_s: 0.0,
+        goals_received: 0,
+        replans_after_hold: 0,
+        goals_rejected: 0,
+        states_rejected: 0,
+        plan_errors: Vec::new(),
+    };
+    let mut traj_id = 0u64;
+    let mut restart_from_state = false;
+    while !signals::stop_requested() {
+        if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
+            have_state = true;
+        }
+        goal_sub
+            .for_each(&lim, |m| {
+                next_goal = Some(m.q);
+            })
+            .map_err(|e| e.to_string())?;
+        rep.goals_received = goal_sub.received;
+        rep.goals_rejected = goal_sub.rejected;
+        rep.states_rejected = state_sub.rejected;
+        let fresh = have_state && state.header.seq > last_seq;
+        last_seq = state.header.seq;
+        let have_cmd = cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
+        if fresh && have_cmd && traj_id > 0 && next_goal.is_none() {
+            let off = (0..NJ).map(|i| (state.q[i] - current_goal[i]).abs()).fold(0.0, f64::max);
+            let holding = cmd.mode == ControllerMode::Hold as u32 && cmd.state_seq + 5 >= state.header.seq;
+            let now = state.header.stamp_ns;
+            if holding && off > GOAL_TOLERANCE_RAD && now > last_replan_ns + 500_000_000 {
+                eprintln!("goto: tracker holds {off:.3} rad short of the goal; re-issuing it");
+                last_replan_ns = now;
+                rep.replans_after_hold += 1;
+                next_goal = Some(current_goal);
+                restart_from_state = true;
+            }
+        }
+        if have_state {
+            if let Some(q_goal) = next_goal.take() {
+                current_goal = q_goal;
+                let now = state.header.stamp_ns;
+                // Start from the reference we published (continuity), or from
+                // the measured state (at rest, the first time).
+                let from = if traj_id == 0 || std::mem::take(&mut restart_from_state) {
+                    KinState { p: state.q, v: [0.0; NJ], a: [0.0; NJ] }
+                } else {
+                    let s = traj.sample(traj.time_of(now));
+                    KinState { p: s.p, v: s.v, a: s.a }
+                };
+                traj_id += 1;
+                match plan(&from, &q_goal, &limits, period_s, traj_id, now, &mut traj) {
+                    Ok(d) => {
+                        traj_pub.publish(&mut traj).map_err(|e| e.to_string())?;
+                        rep.trajectories += 1;
+                        rep.last_duration_s = d;
+                        eprintln!("goto: trajectory {traj_id} to {q_goal:?}: {d:.3} s");
+                    }
+                    Err(e) => {
+                        eprintln!("goto: cannot plan to {q_goal:?}: {e}");
+                        rep.plan_errors.push(e.to_string());
+                    }
+                }
+            }
+            if state.header.flags & FLAG_END_OF_RUN != 0 {
+                break;
+            }
+        }
+        // Late subscribers (a restarted tracker) get the trajectory from history.
+        traj_pub.update_connections().map_err(|e| e.to_string())?;
+        hb.maybe_send(
+            mono_ns(),
+            false,
+            state.header.stamp_ns,
+            ProcessState::Running,
+            rep.trajectories,
+            0,
+            state_sub.rejected + goal_sub.rejected,
+            0,
+        )
+        .map_err(|e| e.to_string())?;
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let _ = hb.maybe_send(
+        mono_ns(),
+        true,
+        state.header.stamp_ns,
+        ProcessState::Stopping,
+        rep.trajectories,
+        0,
+        0,
+        0,
+    );
+    if let Some(p) = stats_path {
+        let text = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
+        std::fs::write(p, text).map_err(|e| format!("goto: write {}: {e}", p.display()))?;
+    }
+    Ok(rep)
+}

@@ -1,0 +1,52 @@
+//! Loading the scenario's arm and the message-contract limits derived from it.
+
+use crate::{ArmLimits, ConfigError, Scenario, NJ};
+use dkrrt_model::ArmModel;
+use dkrrt_msg::ContractLimits;
+
+impl Scenario {
+    /// Loads the arm (URDF or the embedded default), applies the scenario's
+    /// gravity, and validates the scenario against the arm's limits.
+    pub fn load_arm(&self) -> Result<ArmModel, ConfigError> {
+        let mut model = match self.urdf_path() {
+            None => ArmModel::default_arm(),
+            Some(p) => ArmModel::from_urdf_file(&p).map_err(|e| ConfigError::Invalid {
+                origin: self.name.clone(),
+                field: "robot.urdf".into(),
+                value: p.display().to_string(),
+                reason: e.to_string(),
+            })?,
+        };
+        let g = self.robot.gravity;
+        model.set_gravity(nalgebra::Vector3::new(g[0], g[1], g[2]));
+        self.validate(&arm_limits(&model))?;
+        Ok(model)
+    }
+}
+
+/// The arm's joint limits as plain arrays.
+pub fn arm_limits(model: &ArmModel) -> ArmLimits {
+    let l = model.limits();
+    let a = |v: &dkrrt_model::JVec| {
+        let mut o = [0.0; NJ];
+        o.copy_from_slice(v.as_slice());
+        o
+    };
+    ArmLimits { q_min: a(&l.q_min), q_max: a(&l.q_max), v_max: a(&l.v_max), tau_max: a(&l.tau_max) }
+}
+
+/// Limits every process validates messages against.
+pub fn contract_limits(model: &ArmModel) -> ContractLimits {
+    let a = arm_limits(model);
+    ContractLimits {
+        q_min: a.q_min,
+        q_max: a.q_max,
+        v_max: a.v_max,
+        tau_max: a.tau_max,
+        q_margin: 0.05,
+        v_factor: 1.5,
+        debris_range_m: 1000.0,
+        debris_speed_max: 100.0,
+        debris_spin_max: 50.0,
+    }
+}

@@ -1,0 +1,298 @@
+//! The plant core: the arm's rigid-body dynamics integrated under commanded
+//! joint torques, with torque saturation, hard joint stops, joint brakes on a
+//! command watchdog, and optional measurement noise and delay.
+//!
+//! Timing contract (the same for the simulator and a real driver): the plant
+//! publishes state `k` at tick `k`; a command answering state `k`
+//! (`state_seq = k`) is applied from tick `k + 1` to `k + 2` (one tick of
+//! transport delay, as on a real 1 kHz fieldbus). [`Plant::offer_command`]
+//! takes commands in any order; [`Plant::step`] applies the newest eligible one.
+
+use dkrrt_model::{ArmModel, JVec, NJ};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+/// Plant options (from the scenario's `[sim]` table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantConfig {
+    /// Tick length, s.
+    pub dt: f64,
+    /// RK4 substeps per tick.
+    pub substeps: u32,
+    pub noise_q_std: f64,
+    pub noise_qd_std: f64,
+    /// Measurement delay, ticks (≤ [`MAX_DELAY`]).
+    pub delay_ticks: u32,
+    /// Brakes engage after this many ticks without a new eligible command.
+    pub command_timeout_ticks: u32,
+    /// Brake damping, N·m·s/rad (saturated at the torque limits).
+    pub brake_damping: f64,
+    pub seed: u64,
+}
+
+impl PlantConfig {
+    pub fn from_scenario(sc: &dkrrt_config::Scenario) -> Self {
+        PlantConfig {
+            dt: sc.period_ns() as f64 * 1e-9,
+            substeps: sc.sim.substeps,
+            noise_q_std: sc.sim.noise_q_std,
+            noise_qd_std: sc.sim.noise_qd_std,
+            delay_ticks: sc.sim.delay_ticks.min(MAX_DELAY as u32),
+            command_timeout_ticks: sc.sim.command_timeout_ticks,
+            brake_damping: sc.sim.brake_damping,
+            seed: sc.sim.seed,
+        }
+    }
+}
+
+/// Largest supported measurement delay, ticks.
+pub const MAX_DELAY: usize = 1000;
+
+/// A measured state as the plant reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    pub tick: u64,
+    pub q: [f64; NJ],
+    pub qd: [f64; NJ],
+    /// Torque applied over the last tick.
+    pub tau: [f64; NJ],
+    pub brake_engaged: bool,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Cmd {
+    state_seq: u64,
+    tau: JVec,
+}
+
+/// Counters of the plant.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct PlantStats {
+    pub ticks: u64,
+    /// Commands accepted for application.
+    pub commands_applied: u64,
+    /// Commands that arrived too late to be applied (a newer one was already active).
+    pub commands_late: u64,
+    /// Commands whose torque exceeded the limit and was saturated.
+    pub saturations: u64,
+    /// Times the brake watchdog engaged after commands had been flowing.
+    pub brake_engagements: u64,
+    /// Ticks spent with brakes engaged.
+    pub brake_ticks: u64,
+    /// Substeps in which a joint hit its hard stop.
+    pub limit_hits: u64,
+}
+
+/// The plant. Constructed once; [`Plant::step`] allocates nothing.
+pub struct Plant {
+    model: ArmModel,
+    cfg: PlantConfig,
+    q: JVec,
+    qd: JVec,
+    tick: u64,
+    active: Option<Cmd>,
+    pending: Option<Cmd>,
+    ticks_without_command: u32,
+    brake: bool,
+    tau_applied: JVec,
+    rng: SmallRng,
+    /// Ring of past true states for the measurement delay.
+    history: Vec<(JVec, JVec, JVec)>,
+    pub stats: PlantStats,
+}
+
+impl Plant {
+    pub fn new(model: ArmModel, cfg: PlantConfig, q0: &[f64; NJ]) -> Plant {
+        let q = JVec::from_row_slice(q0);
+        let zero = JVec::zeros();
+        let n = cfg.delay_ticks as usize + 1;
+        Plant {
+            model,
+            cfg,
+            q,
+            qd: zero,
+            tick: 0,
+            active: None,
+            pending: None,
+            ticks_without_command: 0,
+            brake: true, // brakes hold the arm until commands flow
+            tau_applied: zero,
+            rng: SmallRng::seed_from_u64(cfg.seed),
+            history: vec![(q, zero, zero); n],
+            stats: PlantStats::default(),
+        }
+    }
+
+    pub fn model(&self) -> &ArmModel {
+        &self.model
+    }
+
+    /// Current tick (index of the state [`Plant::measured`] reports).
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// True joint position and velocity (no noise, no delay).
+    pub fn true_state(&self) -> (JVec, JVec) {
+        (self.q, self.qd)
+    }
+
+    pub fn brake_engaged(&self) -> bool {
+        self.brake
+    }
+
+    /// Offers a command answering state `state_seq`. It becomes eligible at
+    /// tick `state_seq + 1`. Stale commands (older than the active one) are
+    /// counted and dropped.
+    pub fn offer_command(&mut self, state_seq: u64, tau: &[f64; NJ]) {
+        let cmd = Cmd { state_seq, tau: JVec::from_row_slice(tau) };
+        if let Some(a) = self.active {
+            if state_seq <= a.state_seq {
+                self.stats.commands_late += 1;
+                return;
+            }
+        }
+        if let Some(p) = self.pending {
+            if p.state_seq >= state_seq {
+                self.stats.commands_late += 1;
+                return;
+            }
+        }
+        // A held command that is already eligible is promoted before it is replaced.
+        self.promote_eligible();
+        self.pending = Some(cmd);
+    }
+
+    /// Moves the pending command to active if it answers a state before this tick.
+    fn promote_eligible(&mut self) {
+        if let Some(p) = self.pending {
+            if p.state_seq < self.tick {
+                self.active = Some(p);
+                self.pending = None;
+                self.stats.commands_applied += 1;
+                self.ticks_without_command = 0;
+                self.brake = false;
+            }
+        }
+    }
+
+    /// True if a command answering the current state has been offered.
+    pub fn has_command_for_current(&self) -> bool {
+        self.pending.is_some_and(|p| p.state_seq >= self.tick)
+            || self.active.is_some_and(|a| a.state_seq >= self.tick)
+    }
+
+    fn saturate(&self, tau: &JVec) -> (JVec, bool) {
+        let lim = &self.model.limits().tau_max;
+        let mut out = *tau;
+        let mut sat = false;
+        for i in 0..NJ {
+            if out[i].abs() > lim[i] {
+                out[i] = out[i].clamp(-lim[i], lim[i]);
+                sat = true;
+            }
+        }
+        (out, sat)
+    }
+
+    fn brake_torque(&self, qd: &JVec) -> JVec {
+        let lim = &self.model.limits().tau_max;
+        let mut t = JVec::zeros();
+        for i in 0..NJ {
+            t[i] = (-self.cfg.brake_damping * qd[i]).clamp(-lim[i], lim[i]);
+        }
+        t
+    }
+
+    fn accel(&self, q: &JVec, qd: &JVec, tau_cmd: &JVec) -> JVec {
+        let tau = if self.brake { self.brake_torque(qd) } else { *tau_cmd };
+        self.model.forward_dynamics(q, qd, &tau)
+    }
+
+    /// Advances one tick: applies the newest eligible command (or the brakes),
+    /// integrates with RK4 substeps, enforces hard stops.
+    pub fn step(&mut self) {
+        // Eligible: commands answering states up to tick - 1.
+        self.promote_eligible();
+        self.ticks_without_command = self.ticks_without_command.saturating_add(1);
+        if !self.brake && self.ticks_without_command > self.cfg.command_timeout_ticks {
+            self.brake = true;
+            self.stats.brake_engagements += 1;
+        }
+        let (tau, sat) = match (&self.active, self.brake) {
+            (Some(c), false) => self.saturate(&c.tau),
+            _ => (JVec::zeros(), false),
+        };
+        if sat {
+            self.stats.saturations += 1;
+        }
+        let h = self.cfg.dt / self.cfg.substeps as f64;
+        let lim = *self.model.limits();
+        for _ in 0..self.cfg.substeps {
+            let (q, qd) = (self.q, self.qd);
+            let k1v = qd;
+            let k1a = self.accel(&q, &qd, &tau);
+            let k2v = qd + k1a * (h / 2.0);
+            let k2a = self.accel(&(q + k1v * (h / 2.0)), &k2v, &tau);
+            let k3v = qd + k2a * (h / 2.0);
+            let k3a = self.accel(&(q + k2v * (h / 2.0)), &k3v, &tau);
+            let k4v = qd + k3a * h;
+            let k4a = self.accel(&(q + k3v * h), &k4v, &tau);
+            self.q = q + (k1v + k2v * 2.0 + k3v * 2.0 + k4v) * (h / 6.0);
+            self.qd = qd + (k1a + k2a * 2.0 + k3a * 2.0 + k4a) * (h / 6.0);
+            for i in 0..NJ {
+                if self.q[i] < lim.q_min[i] {
+                    self.q[i] = lim.q_min[i];
+                    self.qd[i] = self.qd[i].max(0.0);
+                    self.stats.limit_hits += 1;
+                } else if self.q[i] > lim.q_max[i] {
+                    self.q[i] = lim.q_max[i];
+                    self.qd[i] = self.qd[i].min(0.0);
+                    self.stats.limit_hits += 1;
+                }
+            }
+        }
+        self.tau_applied = if self.brake { self.brake_torque(&self.qd) } else { tau };
+        if self.brake {
+            self.stats.brake_ticks += 1;
+        }
+        self.tick += 1;
+        self.stats.ticks += 1;
+        let n = self.history.len();
+        self.history[(self.tick as usize) % n] = (self.q, self.qd, self.tau_applied);
+    }
+
+    fn gauss(&mut self) -> f64 {
+        // Box–Muller; allocation-free.
+        let u1: f64 = self.rng.random::<f64>().max(1e-300);
+        let u2: f64 = self.rng.random::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * core::f64::consts::PI * u2).cos()
+    }
+
+    /// The state as measured at the current tick (delayed and noisy as configured).
+    pub fn measured(&mut self) -> Measured {
+        // Slot (t + 1) mod n holds the state of tick t - delay (the ring is
+        // pre-filled with the initial state for the first ticks).
+        let n = self.history.len();
+        let (q, qd, tau) = self.history[(self.tick as usize + 1) % n];
+        let mut m = Measured {
+            tick: self.tick,
+            q: [0.0; NJ],
+            qd: [0.0; NJ],
+            tau: [0.0; NJ],
+            brake_engaged: self.brake,
+        };
+        for i in 0..NJ {
+            m.q[i] = q[i];
+            m.qd[i] = qd[i];
+            m.tau[i] = tau[i];
+        }
+        if self.cfg.noise_q_std > 0.0 || self.cfg.noise_qd_std > 0.0 {
+            for i in 0..NJ {
+                m.q[i] += self.cfg.noise_q_std * self.gauss();
+                m.qd[i] += self.cfg.noise_qd_std * self.gauss();
+            }
+        }
+        m
+    }
+}

@@ -1,0 +1,168 @@
+//! The `dkrrt sim` process shell: wires the plant core to iceoryx2 and a clock.
+//!
+//! Realtime: ticks on absolute CLOCK_MONOTONIC deadlines at multiples of the
+//! period. Lockstep: after publishing state `k` it waits for the command
+//! answering `k`, so the run is deterministic and as fast as the loop allows.
+//! Either way the timing contract of [`crate::plant`] holds.
+
+use std::path::Path;
+
+use dkrrt_config::arm::contract_limits;
+use dkrrt_config::{Mode, Scenario};
+use dkrrt_msg::bus::{Bus, HeartbeatTx};
+use dkrrt_msg::*;
+use dkrrt_rt::clock::{mono_ns, Pacer};
+use dkrrt_rt::hist::{LatencyHist, Percentiles};
+use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
+use dkrrt_rt::signals;
+
+use crate::plant::{Plant, PlantConfig, PlantStats};
+
+/// What the sim reports at exit (written as JSON to `--stats`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SimReport {
+    pub mode: Mode,
+    pub ticks: u64,
+    pub deadline_misses: u64,
+    pub wake_latency_us: Percentiles,
+    pub plant: PlantStats,
+    pub commands_received: u64,
+    pub commands_rejected: u64,
+    pub final_q: [f64; NJ],
+    pub final_qd: [f64; NJ],
+    pub stopped_by_signal: bool,
+    pub rt: RtReport,
+}
+
+fn rt_options(cpu: i32, prio: u32, mlock: bool) -> RtOptions {
+    RtOptions { fifo_priority: prio, mlockall: mlock, cpu: (cpu >= 0).then_some(cpu as usize) }
+}
+
+/// Runs the simulator until the scenario's duration has elapsed in plant
+/// time, or SIGINT/SIGTERM. The last published state carries `FLAG_END_OF_RUN`.
+pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<SimReport, String> {
+    signals::install();
+    let model = sc.load_arm().map_err(|e| e.to_string())?;
+    let lim = contract_limits(&model);
+    // Real-time scheduling only when paced by the clock: lockstep loops spin,
+    // and spinning SCHED_FIFO processes would starve the rest of the machine.
+    let rt = if sc.run.mode == Mode::Realtime {
+        rtsetup::apply(&rt_options(sc.sim.cpu, sc.sim.fifo_priority, sc.sim.mlockall))
+    } else {
+        RtReport::default()
+    };
+    for w in &rt.warnings {
+        eprintln!("sim: warning: {w}");
+    }
+    let bus = Bus::new(run, "sim").map_err(|e| e.to_string())?;
+    let mut state_pub = bus.publisher::<RobotState>(Source::Sim).map_err(|e| e.to_string())?;
+    let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
+    let mut hb = HeartbeatTx::new(&bus, Source::Sim, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
+
+    let mut plant = Plant::new(model, PlantConfig::from_scenario(sc), &sc.sim.initial_q);
+    let period_ns = sc.period_ns();
+    let total = sc.ticks();
+    let mut msg = <RobotState as Zeroed>::zeroed();
+    let mut wake = LatencyHist::new();
+    let mut pacer = Pacer::new(period_ns, 0, 2_000_000);
+    let mut stopped_by_signal = false;
+    let first_timeout_ns = 20_000_000_000u64;
+    let timeout_ns = 2_000_000_000u64;
+
+    let mut k = 0u64;
+    loop {
+        if sc.run.mode == Mode::Realtime {
+            let w = pacer.wait(signals::stop_requested);
+            wake.record_ns(w.latency_ns());
+        }
+        let stop = signals::stop_requested();
+        stopped_by_signal |= stop;
+        let last = k >= total || stop;
+        let m = plant.measured();
+        msg.header.stamp_ns = k * period_ns;
+        msg.header.flags =
+            if m.brake_engaged { FLAG_BRAKE_ENGAGED } else { 0 } | if last { FLAG_END_OF_RUN } else { 0 };
+        msg.q = m.q;
+        msg.qd = m.qd;
+        msg.tau = m.tau;
+        state_pub.publish(&mut msg).map_err(|e| e.to_string())?;
+        if last {
+            break;
+        }
+        let mut offer = |c: &TorqueCommand| plant.offer_command(c.state_seq, &c.tau);
+        match sc.run.mode {
+            Mode::Realtime => {
+                cmd_sub.for_each(&lim, &mut offer).map_err(|e| e.to_string())?;
+            }
+            Mode::Lockstep => {
+                let t0 = mono_ns();
+                let limit = if k == 0 { first_timeout_ns } else { timeout_ns };
+                let mut spins = 0u32;
+                loop {
+                    cmd_sub
+                        .for_each(&lim, |c| plant.offer_command(c.state_seq, &c.tau))
+                        .map_err(|e| e.to_string())?;
+                    if plant.has_command_for_current() || signals::stop_requested() {
+                        break;
+                    }
+                    if mono_ns() - t0 > limit {
+                        return Err(format!(
+                            "sim: lockstep: no command answering state {k} within {} s",
+                            limit / 1_000_000_000
+                        ));
+                    }
+                    spins += 1;
+                    if spins % 64 == 0 {
+                        // Late subscribers get the current state from history.
+                        state_pub.update_connections().map_err(|e| e.to_string())?;
+                        std::thread::yield_now();
+                    }
+                    core::hint::spin_loop();
+                }
+            }
+        }
+        plant.step();
+        k += 1;
+        let state = if plant.brake_engaged() { ProcessState::SafeHold } else { ProcessState::Running };
+        hb.maybe_send(
+            mono_ns(),
+            false,
+            k * period_ns,
+            state,
+            k,
+            pacer.misses,
+            cmd_sub.rejected,
+            plant.stats.brake_engagements,
+        )
+        .map_err(|e| e.to_string())?;
+    }
+    let _ = hb.maybe_send(
+        mono_ns(),
+        true,
+        k * period_ns,
+        ProcessState::Stopping,
+        k,
+        pacer.misses,
+        cmd_sub.rejected,
+        plant.stats.brake_engagements,
+    );
+    let (q, qd) = plant.true_state();
+    let report = SimReport {
+        mode: sc.run.mode,
+        ticks: k,
+        deadline_misses: if sc.run.mode == Mode::Realtime { pacer.misses } else { 0 },
+        wake_latency_us: wake.percentiles_us(),
+        plant: plant.stats,
+        commands_received: cmd_sub.received,
+        commands_rejected: cmd_sub.rejected,
+        final_q: q.into(),
+        final_qd: qd.into(),
+        stopped_by_signal,
+        rt,
+    };
+    if let Some(p) = stats_path {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        std::fs::write(p, text).map_err(|e| format!("sim: write {}: {e}", p.display()))?;
+    }
+    Ok(report)
+}

@@ -1,0 +1,373 @@
+//! `dkrrt launch`: starts sim, tracker and the trajectory source as separate
+//! OS processes on a private iceoryx2 run, supervises them, and writes the
+//! run report.
+//!
+//! * Before starting, stale iceoryx2 resources of dead dkrrt nodes of earlier
+//!   runs are removed.
+//! * It waits until every process's node is alive on the bus.
+//! * SIGINT/SIGTERM are forwarded for a graceful stop.
+//! * If one process dies, the others are stopped after a short grace period
+//!   (so the tracker's safe hold and the plant's brakes act and are reported).
+//! * A process whose heartbeat stops for [`HEARTBEAT_TIMEOUT_NS`] is treated as hung.
+
+use std::collections::BTreeSet;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+use dkrrt_config::{Mode, Scenario};
+use dkrrt_msg::bus::{run_config, Bus};
+use dkrrt_msg::{Heartbeat, Source};
+use dkrrt_rt::clock::mono_ns;
+use dkrrt_rt::signals;
+use serde_json::{json, Value};
+
+/// A process whose heartbeat is older than this (after its first one) is hung.
+pub const HEARTBEAT_TIMEOUT_NS: u64 = 2_000_000_000;
+/// How long the launcher lets the others react after a process died.
+pub const GRACE_NS: u64 = 300_000_000;
+
+pub struct LaunchOptions {
+    pub scenario: Scenario,
+    pub report: PathBuf,
+    pub run: Option<String>,
+    pub quiet: bool,
+}
+
+struct Proc {
+    name: &'static str,
+    child: Child,
+    stats: PathBuf,
+    exit: Option<std::process::ExitStatus>,
+    last_heartbeat_ns: Option<u64>,
+    heartbeats: u64,
+}
+
+fn spawn(exe: &Path, name: &'static str, run: &str, scenario: &Path, stats: &Path) -> std::io::Result<Child> {
+    let mut cmd = Command::new(exe);
+    cmd.arg(name)
+        .arg("--run")
+        .arg(run)
+        .arg("--scenario")
+        .arg(scenario)
+        .arg("--stats")
+        .arg(stats)
+        .stdin(Stdio::null());
+    // SAFETY: prctl is async-signal-safe; the child dies with the launcher.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+            Ok(())
+        });
+    }
+    cmd.spawn()
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: plain kill(2) on our own child's pid.
+    unsafe { libc::kill(child.id() as i32, sig) };
+}
+
+/// Run ids of dkrrt iceoryx2 resources present on the machine.
+fn dkrrt_runs_on_machine() -> BTreeSet<String> {
+    let mut runs = BTreeSet::new();
+    let root = PathBuf::from(run_config("x").map(|c| c.global.root_path().to_string()).unwrap_or_default());
+    let mut dirs = vec![PathBuf::from("/dev/shm"), root.clone()];
+    if let Ok(rd) = std::fs::read_dir(&root) {
+        dirs.extend(rd.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+    }
+    for d in dirs {
+        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+            let n = e.file_name().to_string_lossy().to_string();
+            if let Some(rest) = n.strip_prefix("dkrrt_") {
+                if let Some(run) = rest.split('_').next() {
+                    if !run.is_empty() {
+                        runs.insert(run.to_string());
+                    }
+                }
+            }
+        }
+    }
+    runs
+}
+
+/// Removes the stale resources of dead dkrrt nodes of every run on the machine.
+pub fn remove_stale_everywhere() -> usize {
+    dkrrt_runs_on_machine()
+        .iter()
+        .filter_map(|r| run_config(r).ok())
+        .map(|c| Bus::remove_stale(&c).unwrap_or(0))
+        .sum()
+}
+
+/// Removes the small leftover files of a finished run (no node of it alive).
+fn remove_run_leftovers(run: &str) {
+    let prefix = format!("dkrrt_{run}_");
+    for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+        if e.file_name().to_string_lossy().starts_with(&prefix) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+fn status_json(p: &Proc) -> Value {
+    let (code, sig) = match p.exit {
+        Some(s) => (s.code(), s.signal()),
+        None => (None, None),
+    };
+    json!({
+        "name": p.name,
+        "pid": p.child.id(),
+        "exit_code": code,
+        "signal": sig,
+        "heartbeats": p.heartbeats,
+    })
+}
+
+fn read_stats(p: &Path) -> Value {
+    std::fs::read_to_string(p).ok().and_then(|t| serde_json::from_str(&t).ok()).unwrap_or(Value::Null)
+}
+
+fn pick(v: &Value, keys: &[&str]) -> Value {
+    let mut o = serde_json::Map::new();
+    for k in keys {
+        o.insert(k.to_string(), v.get(*k).cloned().unwrap_or(Value::Null));
+    }
+    Value::Object(o)
+}
+
+/// Runs the process set; returns the report and whether the run was clean.
+pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
+    signals::install();
+    let sc = opts.scenario;
+    let t_start = mono_ns();
+    let run = opts.run.unwrap_or_else(|| format!("{}-{}", std::process::id(), t_start % 1_000_000_000));
+    let cfg = run_config(&run).map_err(|e| e.to_string())?;
+    let cleaned = remove_stale_everywhere();
+    if cleaned > 0 && !opts.quiet {
+        println!("dkrrt: removed stale resources of {cleaned} dead node(s) of earlier runs");
+    }
+    let dir = std::env::temp_dir().join(format!("dkrrt-{run}"));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
+    // Every process gets the exact same, fully resolved scenario.
+    let mut resolved = sc.clone();
+    if let Some(p) = sc.urdf_path() {
+        resolved.robot.urdf = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
+    }
+    let sc_path = dir.join("scenario.toml");
+    std::fs::write(&sc_path, resolved.to_toml()).map_err(|e| format!("write {}: {e}", sc_path.display()))?;
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+
+    let bus = Bus::new(&run, "launcher").map_err(|e| e.to_string())?;
+    let mut hb_sub = bus.subscriber::<Heartbeat>().map_err(|e| e.to_string())?;
+    let lim = dkrrt_msg::ContractLimits::symmetric(0.0, 0.0, 0.0);
+
+    let mut procs: Vec<Proc> = Vec::new();
+    for name in ["sim", "tracker", "goto"] {
+        let stats = dir.join(format!("{name}.json"));
+        let _ = std::fs::remove_file(&stats);
+        let child = spawn(&exe, name, &run, &sc_path, &stats).map_err(|e| format!("start {name}: {e}"))?;
+        println!("dkrrt: started {name} pid {}", child.id());
+        procs.push(Proc { name, child, stats, exit: None, last_heartbeat_ns: None, heartbeats: 0 });
+    }
+
+    let mut failure: Option<String> = None;
+    let mut ready = false;
+    let ready_deadline = mono_ns() + 15_000_000_000;
+    let hard_deadline = mono_ns()
+        + match sc.run.mode {
+            Mode::Realtime => ((sc.run.duration_s + 20.0) * 1e9) as u64,
+            Mode::Lockstep => ((sc.run.duration_s * 20.0 + 60.0) * 1e9) as u64,
+        };
+    let mut stop_sent_ns: Option<u64> = None;
+    let mut kill_sent = false;
+    let mut died_at: Option<u64> = None;
+
+    loop {
+        let now = mono_ns();
+        // Heartbeats.
+        let _ = hb_sub.for_each(&lim, |h| {
+            if let Some(src) = Source::from_u32(h.header.source) {
+                if let Some(p) = procs.iter_mut().find(|p| p.name == src.name()) {
+                    p.last_heartbeat_ns = Some(now);
+                    p.heartbeats += 1;
+                }
+            }
+        });
+        // Exits.
+        for p in procs.iter_mut().filter(|p| p.exit.is_none()) {
+            if let Ok(Some(st)) = p.child.try_wait() {
+                p.exit = Some(st);
+                let clean = st.success();
+                if !clean && failure.is_none() && stop_sent_ns.is_none() {
+                    failure = Some(match st.signal() {
+                        Some(s) => format!("process {} died (signal {s})", p.name),
+                        None => format!("process {} failed (exit code {})", p.name, st.code().unwrap_or(-1)),
+                    });
+                    died_at = Some(now);
+                    eprintln!("dkrrt: {}", failure.as_ref().unwrap());
+                }
+                if clean && p.name == "sim" && stop_sent_ns.is_none() && died_at.is_none() {
+                    // Normal end of the run: the others follow the end-of-run flag.
+                    died_at = Some(now);
+                }
+            }
+        }
+        if procs.iter().all(|p| p.exit.is_some()) {
+            break;
+        }
+        if !ready {
+            if let Ok((alive, _)) = Bus::nodes(&cfg) {
+                ready = procs.iter().all(|p| alive.iter().any(|(n, _)| n == p.name));
+                if ready && !opts.quiet {
+                    println!("dkrrt: all processes alive on run {run}");
+                }
+            }
+            if !ready && now > ready_deadline && failure.is_none() {
+                failure = Some("processes did not come up within 15 s".into());
+                died_at = Some(now);
+            }
+        } else if failure.is_none() && stop_sent_ns.is_none() {
+            for p in procs.iter().filter(|p| p.exit.is_none()) {
+                if let Some(t) = p.last_heartbeat_ns {
+                    if now > t + HEARTBEAT_TIMEOUT_NS {
+                        failure = Some(format!("process {} stopped sending heartbeats (hung)", p.name));
+                        died_at = Some(now);
+                    }
+                }
+            }
+        }
+        if signals::stop_requested() && stop_sent_ns.is_none() && failure.is_none() {
+            failure = Some(format!("stopped by signal {}", signals::stop_signal()));
+            died_at = Some(now);
+        }
+        if now > hard_deadline && failure.is_none() {
+            failure = Some("run exceeded its time limit".into());
+            died_at = Some(now);
+        }
+        // Stop the rest after the grace period (graceful first, then SIGKILL).
+        if let Some(t) = died_at {
+            let grace = if failure.is_some() { GRACE_NS } else { 3_000_000_000 };
+            if stop_sent_ns.is_none() && now > t + grace {
+                for p in procs.iter().filter(|p| p.exit.is_none()) {
+                    signal(&p.child, libc::SIGTERM);
+                }
+                stop_sent_ns = Some(now);
+            }
+        }
+        if let Some(t) = stop_sent_ns {
+            if !kill_sent && now > t + 3_000_000_000 {
+                for p in procs.iter().filter(|p| p.exit.is_none()) {
+                    eprintln!("dkrrt: {} ignored SIGTERM; killing it", p.name);
+                    signal(&p.child, libc::SIGKILL);
+                }
+                kill_sent = true;
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    drop(hb_sub);
+    drop(bus);
+    let _ = Bus::remove_stale(&cfg);
+    remove_run_leftovers(&run);
+
+    let stats: Vec<Value> = procs.iter().map(|p| read_stats(&p.stats)).collect();
+    let (sim, tr, goto) = (&stats[0], &stats[1], &stats[2]);
+    let all_clean = procs.iter().all(|p| p.exit.is_some_and(|s| s.success()));
+    let ok = failure.is_none() && all_clean;
+    let lat = |k: &str, full: bool| {
+        let keys: &[&str] = if full { &["p50", "p99", "p999", "max"] } else { &["p50", "p99", "max"] };
+        pick(tr.get(k).unwrap_or(&Value::Null), keys)
+    };
+    let report = json!({
+        "ok": ok,
+        "stop_reason": failure.clone().unwrap_or_else(|| "run completed".into()),
+        "run_id": run,
+        "scenario": sc.name,
+        "mode": sc.run.mode,
+        "duration_s": sim.get("ticks").and_then(Value::as_f64).map(|t| t / sc.run.control_hz),
+        "wall_time_s": (mono_ns() - t_start) as f64 * 1e-9,
+        "ticks": tr.get("ticks"),
+        "deadline_misses": tr.get("deadline_misses"),
+        "wake_latency_us": lat("wake_latency_us", true),
+        "tick_compute_us": lat("tick_compute_us", false),
+        "state_to_command_us": lat("state_to_command_us", false),
+        "tracking_error_rad": tr.get("tracking_error_rad"),
+        "final_error_rad": tr.get("final_error_rad"),
+        "safe_hold": {
+            "entries": tr.get("safe_hold_entries"),
+            "events": tr.get("events"),
+            "plant_brake_engagements": sim.pointer("/plant/brake_engagements"),
+        },
+        "rejected_messages": {
+            "tracker": tr.get("rejected"),
+            "sim_commands": sim.get("commands_rejected"),
+            "goto_states": goto.get("states_rejected"),
+        },
+        "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
+        "sim": sim,
+        "tracker": tr,
+        "goto": goto,
+    });
+    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    std::fs::write(&opts.report, text).map_err(|e| format!("write report {}: {e}", opts.report.display()))?;
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok((report, ok))
+}
+
+/// The short human summary printed after a run.
+pub fn summary(r: &Value) -> String {
+    let f = |p: &str| r.pointer(p).and_then(Value::as_f64).map_or("n/a".to_string(), |v| format!("{v:.1}"));
+    let e = |p: &str| r.pointer(p).and_then(Value::as_f64).map_or("n/a".to_string(), |v| format!("{v:.2e}"));
+    let mut s = String::new();
+    s += &format!(
+        "dkrrt run {} ({}, {:?}): {}\n",
+        r["run_id"].as_str().unwrap_or("?"),
+        r["scenario"].as_str().unwrap_or("?"),
+        r["mode"].as_str().unwrap_or("?"),
+        r["stop_reason"].as_str().unwrap_or("?")
+    );
+    s += &format!(
+        "  ticks {}   deadline misses {}   plant time {} s   wall {} s\n",
+        r["ticks"],
+        r["deadline_misses"],
+        f("/duration_s"),
+        f("/wall_time_s")
+    );
+    s += &format!(
+        "  wake latency us      p50 {}  p99 {}  p99.9 {}  max {}\n",
+        f("/wake_latency_us/p50"),
+        f("/wake_latency_us/p99"),
+        f("/wake_latency_us/p999"),
+        f("/wake_latency_us/max")
+    );
+    s += &format!(
+        "  tick compute us      p50 {}  p99 {}  max {}\n",
+        f("/tick_compute_us/p50"),
+        f("/tick_compute_us/p99"),
+        f("/tick_compute_us/max")
+    );
+    s += &format!(
+        "  state->command us    p50 {}  p99 {}  max {}\n",
+        f("/state_to_command_us/p50"),
+        f("/state_to_command_us/p99"),
+        f("/state_to_command_us/max")
+    );
+    s += &format!(
+        "  tracking error rad   rms {}  max {}   final {}\n",
+        e("/tracking_error_rad/rms"),
+        e("/tracking_error_rad/max"),
+        e("/final_error_rad")
+    );
+    s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
+    for p in r["processes"].as_array().into_iter().flatten() {
+        s += &format!(
+            "\n  {:<8} pid {:<7} exit {} {}",
+            p["name"].as_str().unwrap_or("?"),
+            p["pid"],
+            p["exit_code"],
+            if p["signal"].is_null() { String::new() } else { format!("(signal {})", p["signal"]) }
+        );
+    }
+    s
+}

@@ -1,0 +1,9 @@
+//! dkrrt: Deep Koopman RRT for a 6-DoF space manipulator, as a set of
+//! cooperating real-time processes over iceoryx2 shared memory.
+//!
+//! This crate is the `dkrrt` command: the launcher ([`launch`]), the
+//! in-process lockstep evaluator ([`lockstep`]) and the CLI that starts each
+//! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`).
+
+pub mod launch;
+pub mod lockstep;

@@ -1,0 +1,370 @@
+//! The controller core: computed-torque tracking of a [`Trajectory`] message,
+//! with safe hold (brake to rest within the limits, then hold) when the state
+//! goes stale or the trajectory is invalid.
+//!
+//! τ = M(q)(q̈d + Kd ė + Kp e) + C(q, q̇) q̇ + g(q)
+//!
+//! Delay compensation: a command computed from state `k` acts from tick `k+1`
+//! to `k+2` (see the plant's timing contract). With `predict` on, the law is
+//! evaluated at the model's prediction of state `k+1` (forward dynamics under
+//! the previous command), against the reference at `t_{k+1}`, with the mean
+//! reference acceleration over the interval the torque acts.
+
+use dkrrt_model::{ArmModel, JVec, NJ};
+use dkrrt_msg::{ControllerMode, Trajectory, Zeroed};
+use dkrrt_otg::{KinState, Limits, Options};
+
+/// Controller options (from the scenario's `[tracker]` and `[motion]` tables).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerConfig {
+    pub kp: [f64; NJ],
+    pub kd: [f64; NJ],
+    /// A state older than this many ticks is stale.
+    pub stale_ticks: u32,
+    /// Tick length, s.
+    pub dt: f64,
+    pub predict: bool,
+    /// Limits the brake-to-rest respects.
+    pub limits: Limits<NJ>,
+    /// A new trajectory must start within this distance of the current reference, rad.
+    pub max_start_jump: f64,
+}
+
+impl TrackerConfig {
+    pub fn from_scenario(sc: &dkrrt_config::Scenario) -> Self {
+        TrackerConfig {
+            kp: sc.tracker.kp,
+            kd: sc.tracker.kd,
+            stale_ticks: sc.tracker.stale_ticks,
+            dt: sc.period_ns() as f64 * 1e-9,
+            predict: sc.tracker.predict,
+            limits: Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max },
+            max_start_jump: 0.05,
+        }
+    }
+}
+
+/// Why the controller changed mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reason {
+    FirstState,
+    NewTrajectory,
+    TrajectoryComplete,
+    StaleState,
+    InvalidTrajectory,
+    BrakeComplete,
+}
+
+/// A mode switch, reported by the tick that made it.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ModeEvent {
+    pub tick: u64,
+    pub plant_ns: u64,
+    #[serde(serialize_with = "ser_mode")]
+    pub from: ControllerMode,
+    #[serde(serialize_with = "ser_mode")]
+    pub to: ControllerMode,
+    pub reason: Reason,
+}
+
+fn ser_mode<S: serde::Serializer>(m: &ControllerMode, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(match m {
+        ControllerMode::Idle => "idle",
+        ControllerMode::Track => "track",
+        ControllerMode::Brake => "brake",
+        ControllerMode::Hold => "hold",
+    })
+}
+
+/// The command of one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TickOutput {
+    pub tau: [f64; NJ],
+    pub mode: ControllerMode,
+    /// Seq of the state this answers (the newest received).
+    pub state_seq: u64,
+    /// Plant time the command was computed for, ns.
+    pub plant_ns: u64,
+    pub event: Option<ModeEvent>,
+}
+
+/// Tracking-error accumulators (over ticks with a fresh state and a reference).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ErrorStats {
+    pub sum_sq: f64,
+    pub n: u64,
+    pub max_abs: f64,
+    pub last_abs: f64,
+}
+
+impl ErrorStats {
+    /// RMS over joints and ticks, rad.
+    pub fn rms(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.sum_sq / (self.n as f64 * NJ as f64)).sqrt()
+        }
+    }
+}
+
+/// Counters of the controller.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CtrlStats {
+    pub ticks: u64,
+    pub stale_ticks: u64,
+    pub safe_hold_entries: u64,
+    pub trajectories_accepted: u64,
+    pub trajectories_rejected: u64,
+    pub track: ErrorStats,
+}
+
+/// The computed-torque controller. All state is preallocated at construction;
+/// [`Tracker::tick`] and [`Tracker::set_trajectory`] allocate nothing.
+pub struct Tracker {
+    model: ArmModel,
+    cfg: TrackerConfig,
+    mode: ControllerMode,
+    traj: Box<Trajectory>,
+    brake: dkrrt_otg::Trajectory<NJ>,
+    brake_start_ns: u64,
+    hold_q: [f64; NJ],
+    last_state: Option<(u64, u64, JVec, JVec)>, // (seq, stamp_ns, q, qd)
+    ticks_since_state: u32,
+    prev_tau: JVec,
+    tick: u64,
+    pub stats: CtrlStats,
+}
+
+impl Tracker {
+    pub fn new(model: ArmModel, cfg: TrackerConfig) -> Tracker {
+        Tracker {
+            model,
+            cfg,
+            mode: ControllerMode::Idle,
+            traj: Box::new(<Trajectory as Zeroed>::zeroed()),
+            brake: dkrrt_otg::Trajectory::hold(&KinState::rest([0.0; NJ])),
+            brake_start_ns: 0,
+            hold_q: [0.0; NJ],
+            last_state: None,
+            ticks_since_state: 0,
+            prev_tau: JVec::zeros(),
+            tick: 0,
+            stats: CtrlStats::default(),
+        }
+    }
+
+    pub fn mode(&self) -> ControllerMode {
+        self.mode
+    }
+
+    pub fn active_traj_id(&self) -> u64 {
+        if self.mode == ControllerMode::Track {
+            self.traj.traj_id
+        } else {
+            0
+        }
+    }
+
+    /// End position of the last accepted trajectory (the goal), if any.
+    pub fn goal(&self) -> Option<[f64; NJ]> {
+        (self.traj.traj_id != 0).then(|| self.traj.sample(self.traj.duration_s).p)
+    }
+
+    /// Plant time of the current tick (extrapolated while the state is stale).
+    fn plant_ns(&self) -> u64 {
+        match self.last_state {
+            Some((_, stamp, _, _)) => {
+                stamp + (self.ticks_since_state as f64 * self.cfg.dt * 1e9).round() as u64
+            }
+            None => 0,
+        }
+    }
+
+    /// The desired (p, v, a) at plant time `ns` in the current mode.
+    fn reference(&self, ns: u64) -> ([f64; NJ], [f64; NJ], [f64; NJ]) {
+        match self.mode {
+            ControllerMode::Track => {
+                let s = self.traj.sample(self.traj.time_of(ns));
+                (s.p, s.v, s.a)
+            }
+            ControllerMode::Brake => {
+                let t = (ns as i128 - self.brake_start_ns as i128) as f64 * 1e-9;
+                let s = self.brake.at(t.max(0.0));
+                (s.p, s.v, s.a)
+            }
+            ControllerMode::Hold | ControllerMode::Idle => (self.hold_q, [0.0; NJ], [0.0; NJ]),
+        }
+    }
+
+    fn switch(&mut self, to: ControllerMode, reason: Reason, ns: u64) -> ModeEvent {
+        let ev = ModeEvent { tick: self.tick, plant_ns: ns, from: self.mode, to, reason };
+        self.mode = to;
+        ev
+    }
+
+    /// Enters safe hold: brake from the current reference to rest within the
+    /// limits, then hold where it stops.
+    fn enter_safe_hold(&mut self, reason: Reason, ns: u64) -> ModeEvent {
+        self.stats.safe_hold_entries += 1;
+        let (p, v, a) = match (self.mode, self.last_state) {
+            (ControllerMode::Idle, Some((_, _, q, _))) => (q.into(), [0.0; NJ], [0.0; NJ]),
+            _ => self.reference(ns),
+        };
+        // Clamp the start into the generator's domain (a reference never
+        // exceeds the limits, but a measured fallback might).
+        let mut cur = KinState { p, v, a };
+        for i in 0..NJ {
+            cur.v[i] = cur.v[i].clamp(-self.cfg.limits.v_max[i], self.cfg.limits.v_max[i]);
+            cur.a[i] = cur.a[i].clamp(-self.cfg.limits.a_max[i], self.cfg.limits.a_max[i]);
+        }
+        match dkrrt_otg::Trajectory::calculate_velocity(
+            &cur,
+            &[0.0; NJ],
+            &[0.0; NJ],
+            &self.cfg.limits,
+            &Options::default(),
+        ) {
+            Ok(b) => {
+                self.brake = b;
+                self.brake_start_ns = ns;
+                self.hold_q = b.final_state().p;
+                self.switch(ControllerMode::Brake, reason, ns)
+            }
+            Err(_) => {
+                // Cannot happen for a clamped finite state; hold where we are.
+                self.hold_q = p;
+                self.switch(ControllerMode::Hold, reason, ns)
+            }
+        }
+    }
+
+    /// Offers a new (already validated) trajectory. Accepted if it is new and
+    /// starts at the current reference; otherwise rejected and, while
+    /// tracking, the controller brakes (an invalid trajectory is not followed).
+    pub fn set_trajectory(&mut self, t: &Trajectory) -> Option<ModeEvent> {
+        if t.traj_id == self.traj.traj_id && self.traj.traj_id != 0 {
+            return None;
+        }
+        let ns = self.plant_ns();
+        let start = t.sample(t.time_of(ns)).p;
+        let (cur, _, _) = match (self.mode, self.last_state) {
+            (ControllerMode::Idle, Some((_, _, q, _))) => (q.into(), [0.0; NJ], [0.0; NJ]),
+            (ControllerMode::Idle, None) => (start, [0.0; NJ], [0.0; NJ]),
+            _ => self.reference(ns),
+        };
+        let jump = (0..NJ).map(|i| (start[i] - cur[i]).abs()).fold(0.0, f64::max);
+        if t.traj_id == 0 || jump > self.cfg.max_start_jump {
+            self.stats.trajectories_rejected += 1;
+            return self.reject_trajectory(ns);
+        }
+        *self.traj = *t;
+        self.stats.trajectories_accepted += 1;
+        Some(self.switch(ControllerMode::Track, Reason::NewTrajectory, ns))
+    }
+
+    /// Records that a trajectory message failed validation.
+    pub fn reject_trajectory(&mut self, ns: u64) -> Option<ModeEvent> {
+        if self.mode == ControllerMode::Track {
+            Some(self.enter_safe_hold(Reason::InvalidTrajectory, ns))
+        } else {
+            None
+        }
+    }
+
+    /// One control tick. `state` is the newest valid state if one arrived
+    /// since the last tick. Returns the command to publish.
+    pub fn tick(&mut self, state: Option<(u64, u64, &[f64; NJ], &[f64; NJ])>) -> TickOutput {
+        self.tick += 1;
+        self.stats.ticks += 1;
+        let mut event = None;
+        match state {
+            Some((seq, stamp, q, qd)) if self.last_state.is_none_or(|(s, ..)| seq > s) => {
+                let first = self.last_state.is_none();
+                self.last_state = Some((seq, stamp, JVec::from_row_slice(q), JVec::from_row_slice(qd)));
+                self.ticks_since_state = 0;
+                if first {
+                    self.hold_q = *q;
+                    event = Some(ModeEvent {
+                        tick: self.tick,
+                        plant_ns: stamp,
+                        from: ControllerMode::Idle,
+                        to: ControllerMode::Idle,
+                        reason: Reason::FirstState,
+                    });
+                }
+            }
+            _ => self.ticks_since_state = self.ticks_since_state.saturating_add(1),
+        }
+        let Some((seq, _, q, qd)) = self.last_state else {
+            return TickOutput { tau: [0.0; NJ], mode: self.mode, state_seq: 0, plant_ns: 0, event };
+        };
+        let ns = self.plant_ns();
+        let stale = self.ticks_since_state >= self.cfg.stale_ticks;
+        if stale {
+            self.stats.stale_ticks += 1;
+        }
+
+        // Mode transitions.
+        if stale && matches!(self.mode, ControllerMode::Track | ControllerMode::Idle) {
+            event = Some(self.enter_safe_hold(Reason::StaleState, ns));
+        } else if self.mode == ControllerMode::Track && self.traj.time_of(ns) >= self.traj.duration_s {
+            self.hold_q = self.traj.sample(self.traj.duration_s).p;
+            event = Some(self.switch(ControllerMode::Hold, Reason::TrajectoryComplete, ns));
+        } else if self.mode == ControllerMode::Brake {
+            let t = (ns as i128 - self.brake_start_ns as i128) as f64 * 1e-9;
+            if t >= self.brake.duration() {
+                event = Some(self.switch(ControllerMode::Hold, Reason::BrakeComplete, ns));
+            }
+        }
+
+        // Tracking error of the measured state against the reference at its stamp.
+        let dt_ns = (self.cfg.dt * 1e9).round() as u64;
+        if !stale && self.ticks_since_state == 0 && self.mode != ControllerMode::Idle {
+            let (pd, _, _) = self.reference(ns);
+            let e = &mut self.stats.track;
+            let mut m: f64 = 0.0;
+            for i in 0..NJ {
+                let d = pd[i] - q[i];
+                e.sum_sq += d * d;
+                m = m.max(d.abs());
+            }
+            e.n += 1;
+            e.max_abs = e.max_abs.max(m);
+            e.last_abs = m;
+        }
+
+        let tau = if stale {
+            // No measurement: feed-forward along the reference only.
+            let (pd, vd, ad) = self.reference(ns + dt_ns);
+            let (pd, vd, ad) = (JVec::from(pd), JVec::from(vd), JVec::from(ad));
+            self.model.rnea(&pd, &vd, &ad)
+        } else {
+            let (qc, qdc, t_ref) = if self.cfg.predict {
+                let acc = self.model.forward_dynamics(&q, &qd, &self.prev_tau);
+                let h = self.cfg.dt;
+                (q + qd * h + acc * (0.5 * h * h), qd + acc * h, ns + dt_ns)
+            } else {
+                (q, qd, ns)
+            };
+            let (pd, vd, _) = self.reference(t_ref);
+            // Mean reference acceleration over the interval the torque acts.
+            let (_, _, ad) = self.reference(t_ref + dt_ns / 2);
+            let mut qdd = JVec::zeros();
+            for i in 0..NJ {
+                qdd[i] = ad[i] + self.cfg.kd[i] * (vd[i] - qdc[i]) + self.cfg.kp[i] * (pd[i] - qc[i]);
+            }
+            let m = self.model.mass_matrix(&qc);
+            m * qdd + self.model.nonlinear_effects(&qc, &qdc)
+        };
+        // Never command beyond the actuators' limits.
+        let lim = &self.model.limits().tau_max;
+        let mut out = [0.0; NJ];
+        for i in 0..NJ {
+            out[i] = tau[i].clamp(-lim[i], lim[i]);
+        }
+        self.prev_tau = JVec::from(out);
+        TickOutput { tau: out, mode: self.mode, state_seq: seq, plant_ns: ns, event }
+    }
+}

@@ -1,0 +1,266 @@
+//! The `dkrrt tracker` process shell: the controller core at 1 kHz on
+//! absolute CLOCK_MONOTONIC deadlines (realtime), or driven by each new state
+//! (lockstep). Records wake latency, compute time and state-to-command
+//! latency into preallocated histograms.
+
+use std::path::Path;
+
+use dkrrt_config::arm::contract_limits;
+use dkrrt_config::{Mode, Scenario};
+use dkrrt_msg::bus::{Bus, HeartbeatTx};
+use dkrrt_msg::*;
+use dkrrt_rt::clock::{mono_ns, Pacer};
+use dkrrt_rt::hist::{LatencyHist, Percentiles};
+use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
+use dkrrt_rt::signals;
+
+use crate::ctrl::{ModeEvent, Reason, Tracker, TrackerConfig};
+
+/// Most mode events kept for the report (preallocated; more are counted only).
+pub const MAX_EVENTS: usize = 256;
+
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct ErrorSummary {
+    pub rms: f64,
+    pub max: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Rejected {
+    pub state: u64,
+    pub trajectory: u64,
+}
+
+/// What the tracker reports at exit (written as JSON to `--stats`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TrackerReport {
+    pub mode: Mode,
+    pub ticks: u64,
+    pub deadline_misses: u64,
+    pub wake_latency_us: Percentiles,
+    pub tick_compute_us: Percentiles,
+    pub state_to_command_us: Percentiles,
+    pub tracking_error_rad: ErrorSummary,
+    /// Max |q - goal| over joints at the end (NaN if no trajectory was received).
+    pub final_error_rad: f64,
+    pub safe_hold_entries: u64,
+    pub stale_ticks: u64,
+    pub trajectories_accepted: u64,
+    pub rejected: Rejected,
+    pub events: Vec<ModeEvent>,
+    pub events_dropped: u64,
+    pub end_of_run_seen: bool,
+    pub stopped_by_signal: bool,
+    pub rt: RtReport,
+}
+
+fn rt_options(cpu: i32, prio: u32, mlock: bool) -> RtOptions {
+    RtOptions { fifo_priority: prio, mlockall: mlock, cpu: (cpu >= 0).then_some(cpu as usize) }
+}
+
+fn log_event(e: &ModeEvent) {
+    let safe = matches!(e.reason, Reason::StaleState | Reason::InvalidTrajectory);
+    eprintln!(
+        "tracker: {}{:?} -> {:?} ({:?}) at plant t = {:.3} s",
+        if safe { "SAFE HOLD: " } else { "" },
+        e.from,
+        e.to,
+        e.reason,
+        e.plant_ns as f64 * 1e-9
+    );
+}
+
+/// Runs the tracker until the plant signals the end of the run, or SIGINT/SIGTERM.
+pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<TrackerReport, String> {
+    signals::install();
+    let model = sc.load_arm().map_err(|e| e.to_string())?;
+    let lim = contract_limits(&model);
+    // Real-time scheduling only when paced by the clock: lockstep loops spin,
+    // and spinning SCHED_FIFO processes would starve the rest of the machine.
+    let rt = if sc.run.mode == Mode::Realtime {
+        rtsetup::apply(&rt_options(sc.tracker.cpu, sc.tracker.fifo_priority, sc.tracker.mlockall))
+    } else {
+        RtReport::default()
+    };
+    for w in &rt.warnings {
+        eprintln!("tracker: warning: {w}");
+    }
+    let bus = Bus::new(run, "tracker").map_err(|e| e.to_string())?;
+    let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut traj_sub = bus.subscriber::<Trajectory>().map_err(|e| e.to_string())?;
+    let mut cmd_pub = bus.publisher::<TorqueCommand>(Source::Tracker).map_err(|e| e.to_string())?;
+    let mut hb = HeartbeatTx::new(&bus, Source::Tracker, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
+
+    let mut ctrl = Tracker::new(model, TrackerConfig::from_scenario(sc));
+    let mut state = <RobotState as Zeroed>::zeroed();
+    let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut cmd = <TorqueCommand as Zeroed>::zeroed();
+    let (mut wake, mut compute, mut s2c) = (LatencyHist::new(), LatencyHist::new(), LatencyHist::new());
+    let mut events: Vec<ModeEvent> = Vec::with_capacity(MAX_EVENTS);
+    let mut events_dropped = 0u64;
+    let period_ns = sc.period_ns();
+    let mut pacer = Pacer::new(period_ns, sc.tracker.phase_us * 1000, 2_000_000);
+    let wait_ns = sc.tracker.state_wait_us * 1000;
+    let mut last_seq: Option<u64> = None;
+    let mut last_q = [f64::NAN; NJ];
+    let mut end_of_run_seen = false;
+    let mut stopped_by_signal = false;
+    let mut traj_rejected_seen = 0u64;
+
+    loop {
+        // 1. Wait for this tick's state.
+        let mut fresh = false;
+        match sc.run.mode {
+            Mode::Realtime => {
+                let w = pacer.wait(signals::stop_requested);
+                wake.record_ns(w.latency_ns());
+                let until = w.deadline_ns + wait_ns;
+                loop {
+                    if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())?
+                        && last_seq.is_none_or(|s| state.header.seq > s)
+                    {
+                        fresh = true;
+                    }
+                    if fresh || mono_ns() >= until || signals::stop_requested() {
+                        break;
+                    }
+                    core::hint::spin_loop();
+                }
+            }
+            Mode::Lockstep => {
+                let mut spins = 0u32;
+                loop {
+                    if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())?
+                        && last_seq.is_none_or(|s| state.header.seq > s)
+                    {
+                        fresh = true;
+                        break;
+                    }
+                    if signals::stop_requested() {
+                        break;
+                    }
+                    spins += 1;
+                    if spins % 64 == 0 {
+                        std::thread::yield_now();
+                    }
+                    core::hint::spin_loop();
+                }
+            }
+        }
+        if signals::stop_requested() {
+            stopped_by_signal = true;
+            break;
+        }
+        let t_compute = mono_ns();
+
+        // 2. New trajectory?
+        if traj_sub.latest(&mut traj, &lim).map_err(|e| e.to_string())? {
+            if let Some(e) = ctrl.set_trajectory(&traj) {
+                if events.len() < MAX_EVENTS {
+                    events.push(e);
+                } else {
+                    events_dropped += 1;
+                }
+                log_event(&e);
+            }
+        }
+        if traj_sub.rejected > traj_rejected_seen {
+            traj_rejected_seen = traj_sub.rejected;
+            if let Some(e) = ctrl.reject_trajectory(state.header.stamp_ns) {
+                if events.len() < MAX_EVENTS {
+                    events.push(e);
+                } else {
+                    events_dropped += 1;
+                }
+                log_event(&e);
+            }
+        }
+
+        // 3. Control.
+        let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
+        let out = ctrl.tick(input);
+        if let Some(e) = out.event {
+            if events.len() < MAX_EVENTS {
+                events.push(e);
+            } else {
+                events_dropped += 1;
+            }
+            log_event(&e);
+        }
+        if fresh {
+            last_seq = Some(state.header.seq);
+            last_q = state.q;
+        }
+        if last_seq.is_some() {
+            cmd.header.stamp_ns = out.plant_ns;
+            cmd.tau = out.tau;
+            cmd.state_seq = out.state_seq;
+            cmd.mode = out.mode as u32;
+            cmd.traj_id = ctrl.active_traj_id() as u32;
+            cmd_pub.publish(&mut cmd).map_err(|e| e.to_string())?;
+            let sent = mono_ns();
+            compute.record_ns(sent - t_compute);
+            if fresh {
+                s2c.record_ns(sent.saturating_sub(state.header.mono_ns));
+            }
+        }
+        let ps = match out.mode {
+            ControllerMode::Brake => ProcessState::SafeHold,
+            ControllerMode::Hold if ctrl.stats.safe_hold_entries > 0 => ProcessState::SafeHold,
+            _ => ProcessState::Running,
+        };
+        hb.maybe_send(
+            mono_ns(),
+            false,
+            out.plant_ns,
+            ps,
+            ctrl.stats.ticks,
+            pacer.misses,
+            state_sub.rejected + traj_sub.rejected,
+            ctrl.stats.safe_hold_entries,
+        )
+        .map_err(|e| e.to_string())?;
+        if fresh && state.header.flags & FLAG_END_OF_RUN != 0 {
+            end_of_run_seen = true;
+            break;
+        }
+    }
+    let _ = hb.maybe_send(
+        mono_ns(),
+        true,
+        0,
+        ProcessState::Stopping,
+        ctrl.stats.ticks,
+        pacer.misses,
+        state_sub.rejected + traj_sub.rejected,
+        ctrl.stats.safe_hold_entries,
+    );
+    let final_error_rad = match ctrl.goal() {
+        Some(g) => (0..NJ).map(|i| (g[i] - last_q[i]).abs()).fold(0.0, f64::max),
+        None => f64::NAN,
+    };
+    let report = TrackerReport {
+        mode: sc.run.mode,
+        ticks: ctrl.stats.ticks,
+        deadline_misses: if sc.run.mode == Mode::Realtime { pacer.misses } else { 0 },
+        wake_latency_us: wake.percentiles_us(),
+        tick_compute_us: compute.percentiles_us(),
+        state_to_command_us: s2c.percentiles_us(),
+        tracking_error_rad: ErrorSummary { rms: ctrl.stats.track.rms(), max: ctrl.stats.track.max_abs },
+        final_error_rad,
+        safe_hold_entries: ctrl.stats.safe_hold_entries,
+        stale_ticks: ctrl.stats.stale_ticks,
+        trajectories_accepted: ctrl.stats.trajectories_accepted,
+        rejected: Rejected { state: state_sub.rejected, trajectory: traj_sub.rejected },
+        events,
+        events_dropped,
+        end_of_run_seen,
+        stopped_by_signal,
+        rt,
+    };
+    if let Some(p) = stats_path {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        std::fs::write(p, text).map_err(|e| format!("tracker: write {}: {e}", p.display()))?;
+    }
+    Ok(report)
+}
