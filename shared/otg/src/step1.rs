@@ -170,6 +170,31 @@ impl Problem {
                 self.family(&mut c, &ts, &js, lo, hi);
             }
         }
+        // Hold at the start (at a0) or at the end (at af), then / before three
+        // ramps `−dJ, dJ, −dJ` through M and A2; w = A2 − M.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let w = Lp::mono(1.0, 1);
+            let winv = Lp::mono(1.0, -1);
+            let h = w.scale(-2.0 / jd).add_const(tt - (a0 - af) / jd);
+            let (lo, hi) =
+                if d > 0.0 { (1e-300, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), -1e-300) };
+            for which in 0..2 {
+                let ah = if which == 0 { a0 } else { af };
+                // M = ((Δv − ah·h − (a0² − af²)/(2jd))·jd/w − w)/2
+                let rest = h.scale(-ah).add_const(dv - (a0 * a0 - af * af) / (2.0 * jd));
+                let m = rest.mul(&winv).scale(jd).add(&w.scale(-1.0)).scale(0.5);
+                let a2 = m.add(&w);
+                let r1 = m.scale(-1.0).add_const(a0).scale(1.0 / jd);
+                let r2 = w.scale(1.0 / jd);
+                let r3 = a2.add_const(-af).scale(1.0 / jd);
+                if which == 0 {
+                    self.family(&mut c, &[h, r1, r2, r3], &[0.0, -jd, jd, -jd], lo, hi);
+                } else {
+                    self.family(&mut c, &[r1, r2, r3, h], &[-jd, jd, -jd, 0.0], lo, hi);
+                }
+            }
+        }
         (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
     }
 
@@ -213,7 +238,13 @@ impl Problem {
                 let t = [h1.t[0], h1.t[1], h1.t[2], t4, h2.t[0], h2.t[1], h2.t[2]];
                 let j = [h1.j[0], h1.j[1], h1.j[2], 0.0, h2.j[0], h2.j[1], h2.j[2]];
                 if let Some(pr) = self.build(&t, &j) {
+                    let before = c.n;
                     self.add(&mut c, pr);
+                    // A valid cruise at the velocity limit in this direction
+                    // excludes the non-cruise families of the same direction.
+                    if c.n > before && t4 > 0.0 {
+                        continue;
+                    }
                 }
             }
             let js = [jd, 0.0, -jd, 0.0, jd];

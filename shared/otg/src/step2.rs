@@ -42,10 +42,17 @@ fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Op
 }
 
 fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
-    const K: usize = 32;
+    const K: usize = 40;
+    // Cruise velocities reachable within the duration.
+    let reach = pb.am * tt + pb.a0.abs() * pb.a0.abs() / pb.jm;
+    let lo = (-pb.vm).max(pb.v0.min(pb.vf) - reach);
+    let hi = pb.vm.min(pb.v0.max(pb.vf) + reach);
+    if !(lo <= hi) {
+        return None;
+    }
     let mut prev: Option<(f64, f64)> = None;
     for i in 0..=K {
-        let vc = pb.vm * (2.0 * i as f64 / K as f64 - 1.0);
+        let vc = lo + (hi - lo) * i as f64 / K as f64;
         let cur = cruise(pb, tt, vc).map(|(f, ..)| (vc, f));
         if let (Some((x0, f0)), Some((x1, f1))) = (prev, cur) {
             if (f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0 {
