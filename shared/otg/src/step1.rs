@@ -102,11 +102,12 @@ impl Problem {
     fn family(&self, c: &mut Cands, ts: &[Lp], js: &[f64], lo: f64, hi: f64) {
         let (mut p, mut v, mut a) = (Lp::constant(self.p0), Lp::constant(self.v0), Lp::constant(self.a0));
         for (t, &j) in ts.iter().zip(js) {
-            let t2 = t.mul(t);
-            let t3 = t2.mul(t);
-            p = p.add(&v.mul(t)).add(&a.mul(&t2).scale(0.5)).add(&t3.scale(j / 6.0));
-            v = v.add(&a.mul(t)).add(&t2.scale(j / 2.0));
-            a = a.add(&t.scale(j));
+            // p += t(v + t(a/2 + t j/6)), v += t(a + t j/2), a += t j
+            let tj = t.scale(j);
+            let inner_p = a.scale(0.5).add(&tj.scale(1.0 / 6.0));
+            p = p.add(&t.mul(&v.add(&t.mul(&inner_p))));
+            v = v.add(&t.mul(&a.add(&tj.scale(0.5))));
+            a = a.add(&tj);
         }
         let r = p.add_const(-self.pf);
         let mut coeffs = [0.0; crate::poly::LEN];

@@ -56,36 +56,42 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
         let cur = cruise(pb, tt, vc).map(|(f, ..)| (vc, f));
         if let (Some((x0, f0)), Some((x1, f1))) = (prev, cur) {
             if (f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0 {
-                // Bisect; the residual is continuous where it is defined.
-                let (mut a, mut b, mut fa) = (x0, x1, f0);
-                let mut ok = true;
-                for _ in 0..80 {
-                    let m = 0.5 * (a + b);
-                    if m <= a || m >= b {
+                // Illinois (modified regula falsi); the residual is continuous
+                // where it is defined.
+                let (mut a, mut b, mut fa, mut fb) = (x0, x1, f0, f1);
+                let mut side = 0i8;
+                for _ in 0..100 {
+                    let mut m = (a * fb - b * fa) / (fb - fa);
+                    if !(m > a && m < b) {
+                        m = 0.5 * (a + b);
+                    }
+                    let Some((fm, ..)) = cruise(pb, tt, m) else { break };
+                    if (fm <= 0.0) == (fa <= 0.0) {
+                        a = m;
+                        fa = fm;
+                        if side == -1 {
+                            fb *= 0.5;
+                        }
+                        side = -1;
+                    } else {
+                        b = m;
+                        fb = fm;
+                        if side == 1 {
+                            fa *= 0.5;
+                        }
+                        side = 1;
+                    }
+                    if fm.abs() <= 1e-14 * (1.0 + (pb.pf - pb.p0).abs())
+                        || b - a <= 1e-15 * (a.abs() + b.abs())
+                    {
                         break;
                     }
-                    match cruise(pb, tt, m) {
-                        Some((fm, ..)) => {
-                            if (fm <= 0.0) == (fa <= 0.0) {
-                                a = m;
-                                fa = fm;
-                            } else {
-                                b = m;
-                            }
-                        }
-                        None => {
-                            ok = false;
-                            break;
-                        }
-                    }
                 }
-                if ok {
-                    for x in [a, b] {
-                        if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
-                            if let Some(pr) = cruise_profile(pb, &h1, t4, &h2) {
-                                if pb.accept(&pr) {
-                                    return Some(pr);
-                                }
+                for x in [a, b] {
+                    if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
+                        if let Some(pr) = cruise_profile(pb, &h1, t4, &h2) {
+                            if pb.accept(&pr) {
+                                return Some(pr);
                             }
                         }
                     }
