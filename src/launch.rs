@@ -45,14 +45,12 @@ struct Proc {
 
 fn spawn(exe: &Path, name: &'static str, run: &str, scenario: &Path, stats: &Path) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
-    cmd.arg(name)
-        .arg("--run")
-        .arg(run)
-        .arg("--scenario")
-        .arg(scenario)
-        .arg("--stats")
-        .arg(stats)
-        .stdin(Stdio::null());
+    if name == "sim" {
+        cmd.arg(name).arg("--gate-trajectory");
+    } else {
+        cmd.arg(name);
+    }
+    cmd.arg("--run").arg(run).arg("--scenario").arg(scenario).arg("--stats").arg(stats).stdin(Stdio::null());
     // SAFETY: prctl is async-signal-safe; the child dies with the launcher.
     unsafe {
         cmd.pre_exec(|| {

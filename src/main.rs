@@ -57,7 +57,13 @@ enum Cmd {
         run: Option<String>,
     },
     /// The plant simulator process: integrates the arm under commanded torques, publishes state at 1 kHz.
-    Sim(ProcArgs),
+    Sim {
+        #[command(flatten)]
+        p: ProcArgs,
+        /// Lockstep only: hold at tick 0 until a trajectory has been published.
+        #[arg(long)]
+        gate_trajectory: bool,
+    },
     /// The 1 kHz computed-torque tracker process.
     Tracker(ProcArgs),
     /// The trajectory source: plans a jerk-limited trajectory to a joint goal and publishes it.
@@ -98,9 +104,9 @@ fn main() -> ExitCode {
             println!("report: {}", report.display());
             Ok(ok)
         }
-        Cmd::Sim(p) => {
+        Cmd::Sim { p, gate_trajectory } => {
             let sc = scenario(&p.common)?;
-            dkrrt_sim::process::run(&p.run, &sc, p.stats.as_deref()).map(|_| true)
+            dkrrt_sim::process::run(&p.run, &sc, gate_trajectory, p.stats.as_deref()).map(|_| true)
         }
         Cmd::Tracker(p) => {
             let sc = scenario(&p.common)?;

@@ -40,7 +40,16 @@ fn rt_options(cpu: i32, prio: u32, mlock: bool) -> RtOptions {
 
 /// Runs the simulator until the scenario's duration has elapsed in plant
 /// time, or SIGINT/SIGTERM. The last published state carries `FLAG_END_OF_RUN`.
-pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<SimReport, String> {
+///
+/// `gate_on_trajectory` (lockstep only): hold at tick 0 until a trajectory has
+/// been published, so plant time does not run ahead of a slow-starting
+/// trajectory source (the launcher sets it).
+pub fn run(
+    run: &str,
+    sc: &Scenario,
+    gate_on_trajectory: bool,
+    stats_path: Option<&Path>,
+) -> Result<SimReport, String> {
     signals::install();
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
@@ -57,6 +66,12 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<SimRep
     let bus = Bus::new(run, "sim").map_err(|e| e.to_string())?;
     let mut state_pub = bus.publisher::<RobotState>(Source::Sim).map_err(|e| e.to_string())?;
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
+    let mut traj_gate = if gate_on_trajectory && sc.run.mode == Mode::Lockstep {
+        Some(bus.subscriber::<Trajectory>().map_err(|e| e.to_string())?)
+    } else {
+        None
+    };
+    let mut traj_seen = <Trajectory as Zeroed>::zeroed();
     let mut hb = HeartbeatTx::new(&bus, Source::Sim, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
 
     let mut plant = Plant::new(model, PlantConfig::from_scenario(sc), &sc.sim.initial_q);
@@ -102,7 +117,13 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<SimRep
                     cmd_sub
                         .for_each(&lim, |c| plant.offer_command(c.state_seq, &c.tau))
                         .map_err(|e| e.to_string())?;
-                    if plant.has_command_for_current() || signals::stop_requested() {
+                    if let Some(g) = traj_gate.as_mut() {
+                        if g.latest(&mut traj_seen, &lim).map_err(|e| e.to_string())? {
+                            traj_gate = None;
+                        }
+                    }
+                    let gated = k == 0 && traj_gate.is_some();
+                    if (plant.has_command_for_current() && !gated) || signals::stop_requested() {
                         break;
                     }
                     if mono_ns() - t0 > limit {

@@ -1,0 +1,183 @@
+//! End-to-end: the real process set (separate OS processes over iceoryx2),
+//! started by `dkrrt launch`. These tests assert outcomes (goal reached,
+//! report sane, safe hold on a crash), never wall-clock speed.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// One process set at a time: they share 2 cores.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_dkrrt")
+}
+
+fn report_path(tag: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("dkrrt-test-{tag}-{}.json", std::process::id()))
+}
+
+fn read_report(p: &std::path::Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).expect("report written")).expect("report is JSON")
+}
+
+fn num(r: &Value, ptr: &str) -> f64 {
+    r.pointer(ptr).and_then(Value::as_f64).unwrap_or_else(|| panic!("report lacks {ptr}: {r:#}"))
+}
+
+fn assert_report_shape(r: &Value) {
+    for k in [
+        "/duration_s",
+        "/ticks",
+        "/deadline_misses",
+        "/wake_latency_us/p50",
+        "/wake_latency_us/p99",
+        "/wake_latency_us/p999",
+        "/wake_latency_us/max",
+        "/tick_compute_us/p50",
+        "/tick_compute_us/p99",
+        "/tick_compute_us/max",
+        "/state_to_command_us/p50",
+        "/state_to_command_us/p99",
+        "/state_to_command_us/max",
+        "/tracking_error_rad/rms",
+        "/tracking_error_rad/max",
+        "/final_error_rad",
+    ] {
+        let v = num(r, k);
+        assert!(v.is_finite() && v >= 0.0, "{k} = {v}");
+    }
+    let procs = r["processes"].as_array().expect("processes");
+    let names: Vec<&str> = procs.iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["sim", "tracker", "goto"]);
+    for p in procs {
+        assert!(p["pid"].as_u64().unwrap() > 0);
+    }
+    assert!(num(r, "/tick_compute_us/p50") <= num(r, "/tick_compute_us/max"));
+    assert!(num(r, "/state_to_command_us/p50") <= num(r, "/state_to_command_us/p99"));
+}
+
+#[test]
+fn realtime_run_reaches_the_goal_with_a_sane_report() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("rt");
+    let out = Command::new(exe()).args(["launch", "--duration", "7", "--report"]).arg(&rp).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "launch failed\n{stdout}\n{stderr}");
+    assert!(stdout.contains("tracking error rad"), "summary printed: {stdout}");
+    let r = read_report(&rp);
+    assert_report_shape(&r);
+    assert_eq!(r["ok"], true);
+    assert_eq!(r["mode"], "realtime");
+    assert!((num(&r, "/duration_s") - 7.0).abs() < 1e-9);
+    // ~7000 ticks of the tracker (a few at start-up are not yet running).
+    assert!(num(&r, "/ticks") > 6000.0, "{}", r["ticks"]);
+    assert!(num(&r, "/tracking_error_rad/rms") < 1e-3, "{}", r["tracking_error_rad"]);
+    assert!(num(&r, "/final_error_rad") < 1e-3, "{}", r["final_error_rad"]);
+    for p in r["processes"].as_array().unwrap() {
+        assert_eq!(p["exit_code"], 0, "{p}");
+        assert!(p["heartbeats"].as_u64().unwrap() > 0, "{p}");
+    }
+    assert_eq!(r["tracker"]["end_of_run_seen"], true);
+    let _ = std::fs::remove_file(rp);
+}
+
+#[test]
+fn lockstep_run_reaches_the_goal_exactly() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("ls");
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--duration", "6", "--report"])
+        .arg(&rp)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let r = read_report(&rp);
+    assert_report_shape(&r);
+    assert_eq!(r["mode"], "lockstep");
+    assert_eq!(num(&r, "/ticks"), 6001.0);
+    assert_eq!(num(&r, "/deadline_misses"), 0.0);
+    // Lockstep has no clock: the same cores as the in-process evaluation.
+    let eval = dkrrt::lockstep::run(&dkrrt_config::Scenario::default_scenario()).unwrap();
+    assert!(num(&r, "/final_error_rad") < 1e-6);
+    assert!(num(&r, "/tracking_error_rad/rms") < 10.0 * eval.tracking_error_rad_rms + 1e-7);
+    assert_eq!(num(&r, "/safe_hold/entries"), 0.0);
+    let _ = std::fs::remove_file(rp);
+}
+
+#[test]
+fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("kill");
+    let mut child = Command::new(exe())
+        .args(["launch", "--duration", "10", "--report"])
+        .arg(&rp)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut sim_pid = None;
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if let Some(rest) = line.strip_prefix("dkrrt: started sim pid ") {
+            sim_pid = rest.trim().parse::<i32>().ok();
+        }
+        if line.starts_with("dkrrt: all processes alive") {
+            break;
+        }
+    }
+    let sim_pid = sim_pid.expect("launcher announced the sim's pid");
+    // Mid-motion (the default trajectory takes ~4 s).
+    std::thread::sleep(Duration::from_millis(1500));
+    // SAFETY: kill(2) on the pid the launcher just reported.
+    assert_eq!(unsafe { libc::kill(sim_pid, libc::SIGKILL) }, 0);
+    let t0 = Instant::now();
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let status = child.wait().unwrap();
+    assert!(t0.elapsed() < Duration::from_secs(15), "launcher stopped the rest promptly");
+    assert!(!status.success(), "a crashed process makes the run fail");
+    let r = read_report(&rp);
+    assert_eq!(r["ok"], false);
+    let reason = r["stop_reason"].as_str().unwrap();
+    assert!(reason.contains("sim") && reason.contains("signal 9"), "{reason}");
+    let procs = r["processes"].as_array().unwrap();
+    assert_eq!(procs[0]["signal"], 9);
+    // The tracker noticed, braked, and exited cleanly on the launcher's SIGTERM.
+    assert_eq!(procs[1]["exit_code"], 0, "{}", procs[1]);
+    assert!(num(&r, "/safe_hold/entries") >= 1.0);
+    let events = r["safe_hold"]["events"].as_array().unwrap();
+    assert!(
+        events.iter().any(|e| e["reason"] == "stale_state" && e["to"] == "brake"),
+        "no stale-state safe hold in {events:?}"
+    );
+    assert!(rest.join("\n").contains("sim died"), "summary names the crash: {rest:?}");
+    let _ = std::fs::remove_file(rp);
+}
+
+#[test]
+fn a_broken_scenario_is_refused_naming_the_field() {
+    let dir = std::env::temp_dir().join(format!("dkrrt-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("bad.toml");
+    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 3", "stale_ticks = 0");
+    std::fs::write(&p, text).unwrap();
+    let out = Command::new(exe()).args(["launch", "--scenario"]).arg(&p).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("tracker.stale_ticks"), "{err}");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn every_process_has_help() {
+    for sub in ["launch", "sim", "tracker", "goto", "eval"] {
+        let out = Command::new(exe()).args([sub, "--help"]).output().unwrap();
+        assert!(out.status.success(), "{sub}");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("--scenario"), "{sub}");
+    }
+}

@@ -1,0 +1,177 @@
+//! The controller core in closed loop with the plant core (no IPC).
+
+use dkrrt_config::Scenario;
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::{ControllerMode, Trajectory, Zeroed};
+use dkrrt_otg::KinState;
+use dkrrt_sim::plant::{Plant, PlantConfig};
+use dkrrt_tracker::ctrl::{Reason, Tracker, TrackerConfig};
+
+#[global_allocator]
+static ALLOC: dkrrt_rt::alloc_count::CountingAlloc = dkrrt_rt::alloc_count::CountingAlloc;
+
+struct Loop {
+    plant: Plant,
+    ctrl: Tracker,
+    traj: Box<Trajectory>,
+    cfg: TrackerConfig,
+}
+
+fn setup(predict: bool) -> Loop {
+    let sc = Scenario::default_scenario();
+    let model = ArmModel::default_arm();
+    let mut cfg = TrackerConfig::from_scenario(&sc);
+    cfg.predict = predict;
+    let plant = Plant::new(model.clone(), PlantConfig::from_scenario(&sc), &sc.sim.initial_q);
+    let ctrl = Tracker::new(model, cfg);
+    let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
+    dkrrt_planner::goto::plan(
+        &KinState::rest(sc.sim.initial_q),
+        &sc.goal.q,
+        &cfg.limits,
+        1e-3,
+        1,
+        0,
+        &mut traj,
+    )
+    .unwrap();
+    Loop { plant, ctrl, traj, cfg }
+}
+
+impl Loop {
+    /// One tick; returns the controller output.
+    fn tick(&mut self, deliver: bool) -> dkrrt_tracker::ctrl::TickOutput {
+        let m = self.plant.measured();
+        let out = self.ctrl.tick(deliver.then_some((m.tick, m.tick * 1_000_000, &m.q, &m.qd)));
+        if deliver {
+            self.plant.offer_command(out.state_seq, &out.tau);
+        }
+        self.plant.step();
+        out
+    }
+}
+
+#[test]
+fn tracks_a_jerk_limited_trajectory_to_the_goal() {
+    let mut l = setup(true);
+    l.tick(true);
+    let ev = l.ctrl.set_trajectory(&l.traj).expect("accepted");
+    assert_eq!(ev.to, ControllerMode::Track);
+    let n = (l.traj.duration_s * 1000.0) as usize + 500;
+    let mut saw_complete = false;
+    for _ in 0..n {
+        let out = l.tick(true);
+        if let Some(e) = out.event {
+            assert_eq!(e.reason, Reason::TrajectoryComplete);
+            saw_complete = true;
+        }
+    }
+    assert!(saw_complete);
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
+    let st = l.ctrl.stats;
+    assert!(st.track.rms() < 1e-5, "rms {}", st.track.rms());
+    assert!(st.track.max_abs < 1e-4, "max {}", st.track.max_abs);
+    let (q, _) = l.plant.true_state();
+    let goal = l.traj.sample(l.traj.duration_s).p;
+    for i in 0..NJ {
+        assert!((q[i] - goal[i]).abs() < 1e-6, "joint {i}: {} vs {}", q[i], goal[i]);
+    }
+    assert_eq!(st.safe_hold_entries, 0);
+}
+
+#[test]
+fn delay_compensation_reduces_the_tracking_error() {
+    let run = |predict: bool| {
+        let mut l = setup(predict);
+        l.tick(true);
+        l.ctrl.set_trajectory(&l.traj);
+        for _ in 0..3000 {
+            l.tick(true);
+        }
+        l.ctrl.stats.track.rms()
+    };
+    let with = run(true);
+    let without = run(false);
+    assert!(without < 1e-3, "{without}");
+    assert!(with < without / 2.0, "with {with}, without {without}");
+}
+
+#[test]
+fn stale_state_brakes_to_rest_then_holds() {
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true); // mid-motion, moving
+    }
+    // States stop arriving.
+    let mut brake_at = None;
+    let mut hold_at = None;
+    for k in 1..3000u32 {
+        let out = l.tick(false);
+        if let Some(e) = out.event {
+            match e.reason {
+                Reason::StaleState => brake_at = Some(k),
+                Reason::BrakeComplete => hold_at = Some(k),
+                r => panic!("unexpected {r:?}"),
+            }
+        }
+        assert!(out.tau.iter().all(|t| t.is_finite()));
+    }
+    assert_eq!(brake_at, Some(l.cfg.stale_ticks), "safe hold after exactly stale_ticks ticks");
+    assert!(hold_at.is_some(), "brake ends in hold");
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
+    assert_eq!(l.ctrl.stats.safe_hold_entries, 1);
+}
+
+#[test]
+fn invalid_trajectory_while_tracking_brakes() {
+    let mut l = setup(true);
+    l.tick(true);
+    assert!(l.ctrl.reject_trajectory(0).is_none(), "nothing to stop when idle");
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1000 {
+        l.tick(true);
+    }
+    let e = l.ctrl.reject_trajectory(1_000_000_000).expect("brakes");
+    assert_eq!((e.to, e.reason), (ControllerMode::Brake, Reason::InvalidTrajectory));
+    // The arm comes to rest.
+    for _ in 0..3000 {
+        l.tick(true);
+    }
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
+    assert!(l.plant.true_state().1.norm() < 1e-3);
+}
+
+#[test]
+fn a_trajectory_that_does_not_start_at_the_reference_is_rejected() {
+    let mut l = setup(true);
+    l.tick(true);
+    let mut far = Trajectory::hold(&[0.5; NJ]);
+    far.traj_id = 9;
+    far.duration_s = 1.0;
+    assert!(l.ctrl.set_trajectory(&far).is_none());
+    assert_eq!(l.ctrl.stats.trajectories_rejected, 1);
+    assert_eq!(l.ctrl.mode(), ControllerMode::Idle);
+    // While tracking, such a trajectory makes it brake.
+    l.ctrl.set_trajectory(&l.traj).unwrap();
+    for _ in 0..1000 {
+        l.tick(true);
+    }
+    let e = l.ctrl.set_trajectory(&far).expect("brake");
+    assert_eq!(e.reason, Reason::InvalidTrajectory);
+}
+
+#[test]
+fn tick_and_set_trajectory_allocate_nothing() {
+    let mut l = setup(true);
+    l.tick(true);
+    let traj = l.traj.clone();
+    let (_, s) = dkrrt_rt::alloc_count::count(|| {
+        l.ctrl.set_trajectory(&traj);
+        for k in 0..2000 {
+            l.tick(k % 500 != 0);
+        }
+    });
+    assert_eq!(s.allocs, 0, "{s:?}");
+}
