@@ -196,6 +196,53 @@ impl Problem {
                 }
             }
         }
+        // Three ramps `−dJ, dJ, −dJ` through M and A2 with a hold at M or at
+        // A2 (w = A2 − M); M follows linearly from the velocity equation.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let kk = tt - (a0 - af) / jd;
+            if kk == 0.0 {
+                continue;
+            }
+            let w = Lp::mono(1.0, 1);
+            let w2 = w.mul(&w);
+            let h = w.scale(-2.0 / jd).add_const(kk);
+            let base = dv - (a0 * a0 - af * af) / (2.0 * jd);
+            let (lo, hi) =
+                if d > 0.0 { (0.0, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), 0.0) };
+            for which in 0..2 {
+                let mut num = w2.scale(-1.0 / jd).add_const(base);
+                if which == 1 {
+                    num = num.add(&w.mul(&h).scale(-1.0));
+                }
+                let m = num.scale(1.0 / kk);
+                let a2 = m.add(&w);
+                let r1 = m.scale(-1.0).add_const(a0).scale(1.0 / jd);
+                let r2 = w.scale(1.0 / jd);
+                let r3 = a2.add_const(-af).scale(1.0 / jd);
+                if which == 0 {
+                    self.family(&mut c, &[r1, h, r2, r3], &[-jd, 0.0, jd, -jd], lo, hi);
+                } else {
+                    self.family(&mut c, &[r1, r2, h, r3], &[-jd, jd, 0.0, -jd], lo, hi);
+                }
+            }
+        }
+        // Two holds joined by same-direction ramps: hold a0, −dJ to M, hold M,
+        // −dJ to af; parameter y = M − a0, the second hold from the velocity
+        // equation (∝ 1/y).
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let kk = tt - (a0 - af) / jd;
+            let r = dv - a0 * kk - (a0 * a0 - af * af) / (2.0 * jd);
+            let y = Lp::mono(1.0, 1);
+            let h2 = Lp::mono(r, -1);
+            let h1 = h2.scale(-1.0).add_const(kk);
+            let r1 = y.scale(-1.0 / jd);
+            let r2 = y.add_const(a0 - af).scale(1.0 / jd);
+            let (lo, hi) =
+                if d > 0.0 { (-2.0 * am * (1.0 + 1e-9), -1e-300) } else { (1e-300, 2.0 * am * (1.0 + 1e-9)) };
+            self.family(&mut c, &[h1, r1, h2, r2], &[0.0, -jd, 0.0, -jd], lo, hi);
+        }
         (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
     }
 

@@ -42,14 +42,71 @@ fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Op
 }
 
 fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
-    const K: usize = 40;
+    const K: usize = 24;
     // Cruise velocities reachable within the duration.
     let reach = pb.am * tt + pb.a0.abs() * pb.a0.abs() / pb.jm;
-    let lo = (-pb.vm).max(pb.v0.min(pb.vf) - reach);
-    let hi = pb.vm.min(pb.v0.max(pb.vf) + reach);
-    if !(lo <= hi) {
+    let lo0 = (-pb.vm).max(pb.v0.min(pb.vf) - reach);
+    let hi0 = pb.vm.min(pb.v0.max(pb.vf) + reach);
+    if !(lo0 <= hi0) {
         return None;
     }
+    // The window where the two velocity profiles fit into the duration:
+    // g(vc) = T1 + T2 <= tt. Golden-section search for the minimum of g, then
+    // bisection for both window edges.
+    let g = |vc: f64| -> f64 {
+        match (
+            velocity::min_time(pb.v0, pb.a0, vc, 0.0, pb.am, pb.jm),
+            velocity::min_time(vc, 0.0, pb.vf, pb.af, pb.am, pb.jm),
+        ) {
+            (Some(a), Some(b)) => a.duration() + b.duration(),
+            _ => f64::INFINITY,
+        }
+    };
+    let (mut a, mut b) = (lo0, hi0);
+    let gr = 0.618_033_988_749_895;
+    let (mut c1, mut c2) = (b - gr * (b - a), a + gr * (b - a));
+    let (mut g1, mut g2) = (g(c1), g(c2));
+    for _ in 0..60 {
+        if g1 < g2 {
+            b = c2;
+            c2 = c1;
+            g2 = g1;
+            c1 = b - gr * (b - a);
+            g1 = g(c1);
+        } else {
+            a = c1;
+            c1 = c2;
+            g1 = g2;
+            c2 = a + gr * (b - a);
+            g2 = g(c2);
+        }
+        if b - a <= 1e-13 * (1.0 + a.abs() + b.abs()) {
+            break;
+        }
+    }
+    let vbest = 0.5 * (a + b);
+    if g(vbest) > tt {
+        return None;
+    }
+    let edge = |mut inside: f64, mut outside: f64| -> f64 {
+        if g(outside) <= tt {
+            return outside;
+        }
+        for _ in 0..60 {
+            let m = 0.5 * (inside + outside);
+            if g(m) <= tt {
+                inside = m;
+            } else {
+                outside = m;
+            }
+            if (outside - inside).abs() <= 1e-14 * (1.0 + inside.abs()) {
+                break;
+            }
+        }
+        inside
+    };
+    let lo = edge(vbest, lo0);
+    let hi = edge(vbest, hi0);
     let mut prev: Option<(f64, f64)> = None;
     for i in 0..=K {
         let vc = lo + (hi - lo) * i as f64 / K as f64;
