@@ -157,12 +157,7 @@ impl<const N: usize> Trajectory<N> {
                 am,
                 jm,
             };
-            let st = pb.solve().ok_or_else(|| {
-                if std::env::var("OTG_DBG").is_ok() {
-                    eprintln!("step1 fail {pb:?}");
-                }
-                OtgError::NoSolution { joint: j }
-            })?;
+            let st = pb.solve().ok_or(OtgError::NoSolution { joint: j })?;
             t_sync = t_sync.max(brake_t[j] + st.t_min);
             if !(t_sync < 1e12) {
                 return Err(OtgError::DurationTooLong { joint: j, duration: t_sync });
@@ -215,16 +210,7 @@ impl<const N: usize> Trajectory<N> {
             } else if let Some(k) = (0..st.n_blocked).find(|&k| close(st.blocked[k].1)) {
                 st.right[k]
             } else {
-                step2::with_duration(pb, tt).ok_or_else(|| {
-                    if std::env::var("OTG_DBG").is_ok() {
-                        eprintln!(
-                            "step2 fail {pb:?} tt={tt} tmin={} blocked={:?}",
-                            st.t_min,
-                            &st.blocked[..st.n_blocked]
-                        );
-                    }
-                    OtgError::NoSolution { joint: j }
-                })?
+                step2::with_duration(pb, tt).ok_or(OtgError::NoSolution { joint: j })?
             };
             let mut pr = heads[j];
             pr.extend(&main);
@@ -320,9 +306,6 @@ pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), O
     let ok = (p - fin[0]).abs() <= REACH_TOL * (1.0 + fin[0].abs())
         && (v - fin[1]).abs() <= REACH_TOL * (1.0 + fin[1].abs())
         && (a - fin[2]).abs() <= 1e-11 * (1.0 + fin[2].abs());
-    if !ok && std::env::var("OTG_DBG").is_ok() {
-        eprintln!("verify fail dp {:e} dv {:e} da {:e} {:?}", p - fin[0], v - fin[1], a - fin[2], pr);
-    }
     if ok {
         Ok(())
     } else {
