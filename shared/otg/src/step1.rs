@@ -243,6 +243,24 @@ impl Problem {
                 if d > 0.0 { (-2.0 * am * (1.0 + 1e-9), -1e-300) } else { (1e-300, 2.0 * am * (1.0 + 1e-9)) };
             self.family(&mut c, &[h1, r1, h2, r2], &[0.0, -jd, 0.0, -jd], lo, hi);
         }
+        // Four ramps `dJ, −dJ, dJ, −dJ` without holds (a0 → A1 → M → A2 → af).
+        // With x = A1 − M, y = A2 − M the duration gives A1 + A2 − M = S and the
+        // velocity A1² + A2² − M² = Q, hence x·y = (S² − Q)/2 = P, y = P/x.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ss = (jd * tt + a0 + af) / 2.0;
+            let q = jd * dv + (a0 * a0 + af * af) / 2.0;
+            let pp = (ss * ss - q) / 2.0;
+            let x = Lp::mono(1.0, 1);
+            let y = Lp::mono(pp, -1);
+            let t1 = y.scale(-1.0).add_const(ss - a0).scale(1.0 / jd);
+            let t2 = x.scale(1.0 / jd);
+            let t3 = y.scale(1.0 / jd);
+            let t4 = x.scale(-1.0).add_const(ss - af).scale(1.0 / jd);
+            let (lo, hi) =
+                if d > 0.0 { (1e-300, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), -1e-300) };
+            self.family(&mut c, &[t1, t2, t3, t4], &[jd, -jd, jd, -jd], lo, hi);
+        }
         (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
     }
 
