@@ -343,7 +343,12 @@ impl Problem {
                     Lp::ZERO,
                     x.scale(-1.0 / jd).add_const(af / jd),
                 ];
-                self.family(&mut c, &ts, &js, -am * (1.0 + 1e-12), am * (1.0 + 1e-12));
+                // Prune: t2 is largest at x² = A²; t7 >= 0 needs d·x <= d·af.
+                let t2_max = d * (dv + (a0 * a0 - af * af) / (2.0 * jd)) / am;
+                let (lo, hi) = if d > 0.0 { (-am, af) } else { (af, am) };
+                if t2_max >= -1e-12 * (1.0 + dv.abs()) {
+                    self.family(&mut c, &ts, &js, lo - 1e-12 * am, hi + 1e-12 * am);
+                }
             }
             // ACC1: A2 = −dA, x = A1, t2 = 0.
             {
@@ -360,7 +365,12 @@ impl Problem {
                     t6,
                     k((af - a2) / jd),
                 ];
-                self.family(&mut c, &ts, &js, -am * (1.0 + 1e-12), am * (1.0 + 1e-12));
+                // Prune: t6 is largest at x² = A²; t1 >= 0 needs d·x >= d·a0.
+                let t6_max = d * ((af * af - a0 * a0) / (2.0 * jd) - dv) / am;
+                let (lo, hi) = if d > 0.0 { (a0, am) } else { (-am, a0) };
+                if t6_max >= -1e-12 * (1.0 + dv.abs()) {
+                    self.family(&mut c, &ts, &js, lo - 1e-12 * am, hi + 1e-12 * am);
+                }
             }
             // NONE: u = A1 − A2, A1 = (u + C/u)/2, A2 = (C/u − u)/2.
             {
@@ -381,7 +391,10 @@ impl Problem {
                 } else {
                     (-2.0 * am * (1.0 + 1e-9), -1e-300)
                 };
-                self.family(&mut c, &ts, &js, lo, hi);
+                // A1² − A2² = C with |A1|, |A2| <= A needs |C| <= A².
+                if cc.abs() <= am * am * (1.0 + 1e-9) {
+                    self.family(&mut c, &ts, &js, lo, hi);
+                }
             }
         }
         if c.n == 0 {

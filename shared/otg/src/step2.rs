@@ -66,7 +66,7 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     let gr = 0.618_033_988_749_895;
     let (mut c1, mut c2) = (b - gr * (b - a), a + gr * (b - a));
     let (mut g1, mut g2) = (g(c1), g(c2));
-    for _ in 0..60 {
+    for _ in 0..45 {
         if g1 < g2 {
             b = c2;
             c2 = c1;
@@ -92,7 +92,7 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
         if g(outside) <= tt {
             return outside;
         }
-        for _ in 0..60 {
+        for _ in 0..44 {
             let m = 0.5 * (inside + outside);
             if g(m) <= tt {
                 inside = m;
