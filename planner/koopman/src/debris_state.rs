@@ -34,6 +34,26 @@ pub const TRANS: std::ops::Range<usize> = 0..6;
 /// Rotational sub-state (quaternion + body rate).
 pub const ROT: std::ops::Range<usize> = 6..13;
 
+/// Sparse degree-2 dictionary for the 7-d rotational sub-state `(q, ω)`:
+/// `[q, ω, 1, q_i ω_j (12), ω_i ω_j (6)]`, `p = 26`. These are exactly the monomials in
+/// `q̇` (bilinear in `q, ω`) and `ω̇` (quadratic in `ω`), so the linear part of the attitude
+/// dynamics is closed to first order; the 10 `q_i q_j` terms of the full degree-2 dictionary
+/// (`p = 36`) are dropped.
+pub fn attitude_dictionary() -> crate::Polynomial {
+    let mut m = Vec::new();
+    for i in 0..4 {
+        for j in 4..7 {
+            m.push(vec![i, j]);
+        }
+    }
+    for i in 4..7 {
+        for j in i..7 {
+            m.push(vec![i, j]);
+        }
+    }
+    crate::Polynomial::from_monomials(7, &m)
+}
+
 /// Pack a state.
 pub fn pack(p: [f64; 3], v: [f64; 3], q: [f64; 4], w: [f64; 3]) -> [f64; N] {
     let mut x = [0.0; N];

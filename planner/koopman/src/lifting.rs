@@ -49,6 +49,9 @@ pub struct Polynomial {
     idx: Vec<u16>,
     /// Offsets into `idx`, one more than the number of monomials.
     off: Vec<u32>,
+    /// Fast evaluation: monomial `m` = `left(m) · x[b]/s[b]` where `left` is the scaled
+    /// variable `a` if `a < n`, else the already computed lifted entry `out[a]`.
+    chain: Vec<(u32, u16)>,
 }
 
 impl Polynomial {
@@ -79,7 +82,45 @@ impl Polynomial {
         for deg in 2..=degree {
             gen(n, deg, 0, &mut Vec::with_capacity(deg), &mut idx, &mut off);
         }
-        Polynomial { n, degree, inv_scale: vec![1.0; n], idx, off }
+        let chain = Self::build_chain(n, &idx, &off);
+        Polynomial { n, degree, inv_scale: vec![1.0; n], idx, off, chain }
+    }
+
+    /// A sparse polynomial dictionary `[x, 1, selected monomials]`; each monomial is a list of
+    /// variable indices (repeats = powers), degree ≥ 2.
+    pub fn from_monomials(n: usize, monomials: &[Vec<usize>]) -> Self {
+        assert!(n >= 1 && n < u16::MAX as usize, "Polynomial: bad state dimension");
+        let mut idx = Vec::new();
+        let mut off = vec![0u32];
+        let mut degree = 1;
+        for m in monomials {
+            assert!(m.len() >= 2 && m.iter().all(|&i| i < n), "Polynomial: bad monomial {m:?}");
+            let mut v = m.clone();
+            v.sort_unstable();
+            idx.extend(v.iter().map(|&i| i as u16));
+            off.push(idx.len() as u32);
+            degree = degree.max(m.len());
+        }
+        let chain = Self::build_chain(n, &idx, &off);
+        Polynomial { n, degree, inv_scale: vec![1.0; n], idx, off, chain }
+    }
+
+    fn build_chain(n: usize, idx: &[u16], off: &[u32]) -> Vec<(u32, u16)> {
+        let mut index = std::collections::HashMap::new();
+        let mut chain = Vec::with_capacity(off.len() - 1);
+        for m in 0..off.len() - 1 {
+            let vars = &idx[off[m] as usize..off[m + 1] as usize];
+            let (head, last) = vars.split_at(vars.len() - 1);
+            let a = if head.len() == 1 {
+                head[0] as u32
+            } else {
+                // Prefix monomial computed earlier, or generic evaluation (u32::MAX).
+                index.get(head).map_or(u32::MAX, |&k: &usize| (n + 1 + k) as u32)
+            };
+            index.insert(vars.to_vec(), m);
+            chain.push((a, last[0]));
+        }
+        chain
     }
     /// Monomials use `x_i / scale_i` (conditioning); the leading `x` block is unscaled.
     pub fn with_scale(mut self, scale: &[f64]) -> Self {
@@ -108,13 +149,18 @@ impl Lifting for Polynomial {
         let n = self.n;
         out[..n].copy_from_slice(&x[..n]);
         out[n] = 1.0;
-        for m in 0..self.off.len() - 1 {
-            let mut v = 1.0;
-            for &i in &self.idx[self.off[m] as usize..self.off[m + 1] as usize] {
-                let i = i as usize;
-                v *= x[i] * self.inv_scale[i];
-            }
-            out[n + 1 + m] = v;
+        let s = &self.inv_scale;
+        for (m, &(a, b)) in self.chain.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            let left = if a < n {
+                x[a] * s[a]
+            } else if a != u32::MAX as usize {
+                out[a]
+            } else {
+                let vars = &self.idx[self.off[m] as usize..self.off[m + 1] as usize - 1];
+                vars.iter().map(|&i| x[i as usize] * s[i as usize]).product()
+            };
+            out[n + 1 + m] = left * (x[b] * s[b]);
         }
     }
     fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {

@@ -218,17 +218,43 @@ pub struct Forecaster {
     z: Vec<f64>,
     zn: Vec<f64>,
     x: Vec<f64>,
+    /// Row-major copy of the state rows of `[A B]` (relift mode).
+    rows: Vec<f64>,
     /// Constraint applied to every decoded state.
     pub constraint: StateConstraint,
 }
 
+/// Maximum input dimension `m` supported by [`Forecaster`].
+pub const MAX_INPUTS: usize = 8;
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    // Four independent accumulators so the reduction pipelines / vectorises.
+    let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        s0 += x[0] * y[0];
+        s1 += x[1] * y[1];
+        s2 += x[2] * y[2];
+        s3 += x[3] * y[3];
+    }
+    let mut s = (s0 + s1) + (s2 + s3);
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
+}
+
 impl Forecaster {
-    /// Scratch for models of lifted dimension ≤ `p_max`.
+    /// Scratch for models of lifted dimension ≤ `p_max` and at most [`MAX_INPUTS`] inputs.
     pub fn new(p_max: usize) -> Self {
+        let w = p_max + MAX_INPUTS;
         Forecaster {
-            z: vec![0.0; p_max],
-            zn: vec![0.0; p_max],
-            x: vec![0.0; p_max],
+            z: vec![0.0; w],
+            zn: vec![0.0; w],
+            x: vec![0.0; w],
+            rows: vec![0.0; p_max * w],
             constraint: StateConstraint::None,
         }
     }
@@ -278,8 +304,19 @@ impl Forecaster {
             Rollout::Linear => self.roll_linear(model, u, out),
             Rollout::Relift => {
                 let h = out.len() / n;
+                let (m, w) = (model.m, p + model.m);
+                assert!(m <= MAX_INPUTS, "Forecaster supports at most MAX_INPUTS inputs");
+                // Row-major copy of the n state rows: each step is n contiguous dot products.
+                for i in 0..n {
+                    for j in 0..w {
+                        self.rows[i * w + j] = model.ab[j * p + i];
+                    }
+                }
                 for k in 0..h {
-                    model.step_rows(n, &self.z, u, &mut self.x);
+                    self.z[p..w].copy_from_slice(&u[..m]);
+                    for i in 0..n {
+                        self.x[i] = dot(&self.rows[i * w..(i + 1) * w], &self.z[..w]);
+                    }
                     self.constraint.apply(&mut self.x[..n]);
                     out[k * n..(k + 1) * n].copy_from_slice(&self.x[..n]);
                     if k + 1 < h {

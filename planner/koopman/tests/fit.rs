@@ -21,6 +21,20 @@ fn matvec(m: &[[f64; 3]; 3], x: &[f64]) -> [f64; 3] {
 const M3: [[f64; 3]; 3] = [[0.9, 0.2, 0.0], [-0.1, 0.95, 0.05], [0.02, 0.0, 0.8]];
 
 #[test]
+fn sparse_polynomial_and_attitude_dictionary() {
+    let p = Polynomial::from_monomials(3, &[vec![1, 0], vec![2, 2, 1], vec![0, 1, 1]]);
+    let mut out = vec![0.0; p.dim()];
+    p.lift(&[2.0, 3.0, 5.0], &mut out);
+    assert_eq!(out, vec![2.0, 3.0, 5.0, 1.0, 6.0, 75.0, 18.0]);
+    let a = debris_state::attitude_dictionary();
+    assert_eq!(a.dim(), 26);
+    let mut z = vec![0.0; 26];
+    a.lift(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0], &mut z);
+    assert_eq!(&z[8..11], &[5.0, 6.0, 7.0]); // q0·ω
+    assert_eq!(&z[20..26], &[25.0, 30.0, 35.0, 36.0, 42.0, 49.0]); // ω_i ω_j
+}
+
+#[test]
 fn polynomial_dictionary_layout() {
     let p = Polynomial::new(13, 2);
     assert_eq!(p.dim(), 13 + 1 + 91);
@@ -56,6 +70,11 @@ fn analytic_lift_derivatives_match_finite_differences() {
         Box::new(Rbf::new(3, centres.clone(), RbfKind::Gaussian { sigma: 0.7 })),
         Box::new(Rbf::new(3, centres, RbfKind::ThinPlate).with_scale(&[1.0, 2.0, 1.0])),
         Box::new(Fourier::new(vec![1.0, 2.0, 0.5], 3)),
+        // Sparse: degree-3 monomial whose prefix is absent (generic path) and one whose is present.
+        Box::new(
+            Polynomial::from_monomials(3, &[vec![0, 1], vec![2, 2, 1], vec![0, 1, 1]])
+                .with_scale(&[1.0, 3.0, 0.5]),
+        ),
     ];
     for d in &dicts {
         let p = d.dim();

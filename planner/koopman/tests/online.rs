@@ -130,7 +130,11 @@ fn online_update_of_a_koopman_model_converges_to_the_true_system() {
     }
     // The initial (identity) model's prior weight decays as λᵏ / p0.
     assert!(last_err < 1e-6, "prior error {last_err}");
-    assert!((model.a(0, 0) - c).abs() < 1e-6 && (model.a(1, 0) - s).abs() < 1e-6 && (model.a(0, 2) - 0.05).abs() < 1e-6);
+    assert!(
+        (model.a(0, 0) - c).abs() < 1e-6
+            && (model.a(1, 0) - s).abs() < 1e-6
+            && (model.a(0, 2) - 0.05).abs() < 1e-6
+    );
     assert!((model.a(2, 2) - 1.0).abs() < 1e-6);
 }
 
@@ -138,7 +142,8 @@ fn online_update_of_a_koopman_model_converges_to_the_true_system() {
 fn error_bound_from_residuals_grows_and_relaxes() {
     // 100 runs × 4 steps, error at step k = (k+1) · (run / 100).
     let h = 4;
-    let errs: Vec<f64> = (0..100).flat_map(|r| (0..h).map(move |k| (k + 1) as f64 * r as f64 / 100.0)).collect();
+    let errs: Vec<f64> =
+        (0..100).flat_map(|r| (0..h).map(move |k| (k + 1) as f64 * r as f64 / 100.0)).collect();
     let mut b = ErrorBound::from_residuals(&errs, h, 0.1, 0.9, 1.5);
     for k in 1..=h {
         let q90 = k as f64 * 0.90;
