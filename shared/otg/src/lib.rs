@@ -37,6 +37,8 @@
 //! }
 //! ```
 #![forbid(unsafe_code)]
+// `!(x >= y)` is deliberate: it is also true for NaN. Index loops mirror the math.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
 mod brake;
 mod error;

@@ -103,7 +103,7 @@ impl Lp {
     }
 
     /// The polynomial `x^(-lowest exponent) · self` as ascending coefficients.
-    pub fn to_poly(&self, out: &mut [f64; LEN]) -> usize {
+    pub fn to_poly(self, out: &mut [f64; LEN]) -> usize {
         if self.is_zero() {
             return 0;
         }

@@ -92,11 +92,12 @@ impl Profile {
 }
 
 /// Limit check on a structural phase list (zero-length phases included, so
-/// indices keep their meaning): `|a| <= amax` everywhere; `|v| <= vmax` at the
-/// end of every phase from index `skip_v` on and at every interior velocity
-/// extremum of those phases. The first `skip_v` phases are exempt from the
-/// velocity check: they may still be correcting a start state whose velocity
-/// excursion is inevitable (e.g. right after a braking pre-trajectory).
+/// indices keep their meaning): `|a| <= amax` everywhere; velocity at every
+/// phase end and interior velocity extremum within `±vmax` from phase index
+/// `skip_v` on. The first `skip_v` phases may still be correcting the start
+/// state, so there the velocity bound is widened only by the excursion the
+/// start state makes inevitable (`v0` itself and `v0 + a0|a0|/(2 jmax)`), as
+/// right after a braking pre-trajectory.
 pub(crate) fn raw_within_limits(
     v0: f64,
     a0: f64,
@@ -104,25 +105,30 @@ pub(crate) fn raw_within_limits(
     j: &[f64],
     vmax: f64,
     amax: f64,
+    jmax: f64,
     skip_v: usize,
 ) -> bool {
-    let vt = vmax * (1.0 + 1e-9) + 1e-12;
+    let tol = vmax * 1e-9 + 1e-12;
     let at = amax * (1.0 + 1e-9) + 1e-12;
+    let ex = v0 + a0 * a0.abs() / (2.0 * jmax);
+    let (wlo, whi) = ((-vmax).min(v0).min(ex) - tol, vmax.max(v0).max(ex) + tol);
+    let (slo, shi) = (-vmax - tol, vmax + tol);
     let (mut v, mut a) = (v0, a0);
     for i in 0..t.len() {
+        let (lo, hi) = if i < skip_v { (wlo, whi) } else { (slo, shi) };
         let (ti, ji) = (t[i], j[i]);
-        if i >= skip_v && ji != 0.0 {
+        if ji != 0.0 {
             let tz = -a / ji;
             if tz > 0.0 && tz < ti {
                 let vz = v + tz * (a + tz * ji / 2.0);
-                if vz.abs() > vt {
+                if vz > hi || vz < lo {
                     return false;
                 }
             }
         }
         v += ti * (a + ti * ji / 2.0);
         a += ti * ji;
-        if a.abs() > at || (i >= skip_v && v.abs() > vt) {
+        if a.abs() > at || v > hi || v < lo {
             return false;
         }
     }

@@ -76,7 +76,7 @@ impl Problem {
         for (k, &ti) in t.iter().enumerate() {
             tc[k] = ti.max(0.0);
         }
-        if !raw_within_limits(self.v0, self.a0, &tc[..t.len()], j, self.vm, self.am, 2) {
+        if !raw_within_limits(self.v0, self.a0, &tc[..t.len()], j, self.vm, self.am, self.jm, 2) {
             return None;
         }
         let mut pr = Profile::new(self.p0, self.v0, self.a0);
@@ -101,13 +101,15 @@ impl Problem {
     /// position residual roots in `[lo, hi]` become candidates.
     fn family(&self, c: &mut Cands, ts: &[Lp], js: &[f64], lo: f64, hi: f64) {
         let (mut p, mut v, mut a) = (Lp::constant(self.p0), Lp::constant(self.v0), Lp::constant(self.a0));
-        for (t, &j) in ts.iter().zip(js) {
+        for (k, (t, &j)) in ts.iter().zip(js).enumerate() {
             // p += t(v + t(a/2 + t j/6)), v += t(a + t j/2), a += t j
             let tj = t.scale(j);
             let inner_p = a.scale(0.5).add(&tj.scale(1.0 / 6.0));
             p = p.add(&t.mul(&v.add(&t.mul(&inner_p))));
-            v = v.add(&t.mul(&a.add(&tj.scale(0.5))));
-            a = a.add(&tj);
+            if k + 1 < ts.len() {
+                v = v.add(&t.mul(&a.add(&tj.scale(0.5))));
+                a = a.add(&tj);
+            }
         }
         let r = p.add_const(-self.pf);
         let mut coeffs = [0.0; crate::poly::LEN];

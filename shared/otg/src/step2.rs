@@ -201,6 +201,8 @@ fn by_reduced_limit(pb: &Problem, tt: f64, which: usize) -> Option<Profile> {
         }
     }
     let pr = best?;
+    // Re-check against the original limits.
+    let pr = pb.build(&pr.t[..pr.n.min(7)], &pr.j[..pr.n.min(7)])?;
     ((pr.duration() - tt).abs() <= 1e-10 * (1.0 + tt) && pb.accept(&pr)).then_some(pr)
 }
 
