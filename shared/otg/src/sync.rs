@@ -269,7 +269,32 @@ impl<const N: usize> Trajectory<N> {
             profiles[j] = pr;
             t_sync = t_sync.max(tmin[j]);
         }
-        let t_sync = adjust_duration(t_sync, options);
+        let mut t_sync = adjust_duration(t_sync, options);
+        // A joint may have a blocked duration interval: move the common
+        // duration past it and start over (a few rounds at most).
+        let mut mains = [velocity::VelProfile::default(); N];
+        if options.sync != Sync::None {
+            'rounds: for _ in 0..2 * N + 2 {
+                for j in 0..N {
+                    if !options.enabled[j] || tmin[j] == t_sync {
+                        continue;
+                    }
+                    let (am, jm) = (limits.a_max[j], limits.j_max[j]);
+                    let b = velocity_interface_brake(current.a[j], am, jm);
+                    let (_, s) = start_with_brake(current.p[j], current.v[j], current.a[j], &b);
+                    let a_s = s.2.clamp(-am, am);
+                    let tt = t_sync - b.duration();
+                    let (t_ok, vp) = velocity::next_feasible(s.1, a_s, target_v[j], target_a[j], am, jm, tt)
+                        .ok_or(OtgError::NoSolution { joint: j })?;
+                    if t_ok > tt {
+                        t_sync = adjust_duration(t_ok + b.duration(), options);
+                        continue 'rounds;
+                    }
+                    mains[j] = vp;
+                }
+                break;
+            }
+        }
         for j in 0..N {
             if !options.enabled[j] {
                 continue;
@@ -278,11 +303,8 @@ impl<const N: usize> Trajectory<N> {
             let (am, jm) = (limits.a_max[j], limits.j_max[j]);
             if options.sync != Sync::None && tmin[j] != t_sync {
                 let b = velocity_interface_brake(a0, am, jm);
-                let (mut pr, s) = start_with_brake(p0, v0, a0, &b);
-                let a_s = s.2.clamp(-am, am);
-                let tt = t_sync - b.duration();
-                let vp = velocity::with_duration(s.1, a_s, target_v[j], target_a[j], am, jm, tt)
-                    .ok_or(OtgError::NoSolution { joint: j })?;
+                let (mut pr, _) = start_with_brake(p0, v0, a0, &b);
+                let vp = mains[j];
                 for i in 0..3 {
                     pr.push(vp.t[i], vp.j[i]);
                 }

@@ -116,3 +116,47 @@ pub(crate) fn with_duration(
     }
     best.map(|(_, p)| p)
 }
+
+/// The earliest duration `>= tt` for which [`with_duration`] has a profile
+/// (the velocity interface can have a blocked duration interval, e.g. when the
+/// acceleration must change sign and back). Candidates are the durations at
+/// which a ramp pattern's quadratic gains a (double) root.
+pub(crate) fn next_feasible(
+    v0: f64,
+    a0: f64,
+    vf: f64,
+    af: f64,
+    am: f64,
+    jm: f64,
+    tt: f64,
+) -> Option<(f64, VelProfile)> {
+    if let Some(p) = with_duration(v0, a0, vf, af, am, jm, tt) {
+        return Some((tt, p));
+    }
+    let dv = vf - v0;
+    let mut best: Option<(f64, VelProfile)> = None;
+    for (s1, s3) in [(1.0f64, -1.0f64), (-1.0, 1.0)] {
+        let (j1, j3) = (s1 * jm, s3 * jm);
+        let qa = -1.0 / (2.0 * j1) + 1.0 / (2.0 * j3);
+        let qc = -a0 * a0 / (2.0 * j1) + af * af / (2.0 * j3) - dv;
+        let prod = 4.0 * qa * qc;
+        if prod < 0.0 {
+            continue;
+        }
+        // qb(T) = T + a0/j1 − af/j3 = ±sqrt(4 qa qc)
+        let r = prod.sqrt();
+        for sgn in [1.0, -1.0] {
+            let t = sgn * r - (a0 / j1 - af / j3);
+            if !(t > tt) || best.as_ref().is_some_and(|(b, _)| t >= *b) {
+                continue;
+            }
+            for tc in [t, t * (1.0 + 1e-12), t * (1.0 + 1e-9)] {
+                if let Some(p) = with_duration(v0, a0, vf, af, am, jm, tc) {
+                    best = Some((tc, p));
+                    break;
+                }
+            }
+        }
+    }
+    best
+}

@@ -163,3 +163,54 @@ fn never_panics_on_garbage() {
         let _ = Trajectory::calculate_velocity(&s, &t.v, &t.a, &l, &Options::default());
     }
 }
+
+/// Velocity interface with random non-zero targets: target velocity and
+/// acceleration reached, acceleration within the limit after the brake, all
+/// joints end together.
+#[test]
+fn random_velocity_interface() {
+    let mut rng = SmallRng::seed_from_u64(11);
+    let mut done = 0;
+    while done < 20_000 {
+        let mut l = Limits { v_max: [0.0; 6], a_max: [0.0; 6], j_max: [0.0; 6] };
+        let mut s = KinState::<6>::default();
+        let (mut tv, mut ta) = ([0.0; 6], [0.0; 6]);
+        for j in 0..6 {
+            l.v_max[j] = rng.random_range(0.08..16.0);
+            l.a_max[j] = rng.random_range(0.08..16.0);
+            l.j_max[j] = rng.random_range(0.08..16.0);
+            s.p[j] = rng.random_range(-4.0..4.0);
+            s.v[j] = rng.random_range(-2.0..2.0);
+            s.a[j] = rng.random_range(-2.0..2.0);
+            tv[j] = rng.random_range(-2.0..2.0);
+            ta[j] = if rng.random_bool(0.3) { 0.0 } else { rng.random_range(-2.0..2.0) };
+        }
+        let o = Options::default();
+        let res = Trajectory::calculate_velocity(&s, &tv, &ta, &l, &o);
+        let Ok(tr) = res else {
+            // Only invalid targets may be rejected.
+            let invalid = (0..6).any(|j| {
+                tv[j].abs() > l.v_max[j]
+                    || ta[j].abs() > l.a_max[j]
+                    || (ta[j] < 0.0 && tv[j] + ta[j] * ta[j] / (2.0 * l.j_max[j]) > l.v_max[j])
+                    || (ta[j] > 0.0 && tv[j] - ta[j] * ta[j] / (2.0 * l.j_max[j]) < -l.v_max[j])
+            });
+            assert!(invalid, "valid velocity problem rejected: {s:?} {tv:?} {ta:?} {l:?}");
+            continue;
+        };
+        done += 1;
+        for j in 0..6 {
+            let segs = tr.joint_segments(j);
+            let last = segs.last().unwrap();
+            assert!((last.t1 - tr.duration()).abs() < 1e-12);
+            let (_, v, a) = last.state_at(last.t1);
+            assert!((v - tv[j]).abs() < 1e-8 && (a - ta[j]).abs() < 1e-10, "joint {j}: v {v} a {a}");
+            for sg in segs {
+                assert!(sg.jerk.abs() <= l.j_max[j] * (1.0 + 1e-12));
+                let (_, _, ae) = sg.state_at(sg.t1);
+                let bound = l.a_max[j].max(s.a[j].abs()) * (1.0 + 1e-9) + 1e-12;
+                assert!(ae.abs() <= bound && sg.a0.abs() <= bound);
+            }
+        }
+    }
+}
