@@ -11,6 +11,8 @@
 //! * stopping at every waypoint (synchronized rest-to-rest sections),
 //! * rsruckig's local pass-through waypoint solver (`intermediate_positions`).
 
+#![allow(clippy::needless_range_loop)]
+
 use dkrrt_otg::{KinState, Limits, Options, Trajectory};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};

@@ -98,6 +98,7 @@ impl Profile {
 /// state, so there the velocity bound is widened only by the excursion the
 /// start state makes inevitable (`v0` itself and `v0 + a0|a0|/(2 jmax)`), as
 /// right after a braking pre-trajectory.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn raw_within_limits(
     v0: f64,
     a0: f64,

@@ -1,5 +1,7 @@
 //! Options, synchronization modes, online update, waypoints and robustness.
 
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::check_traj;
