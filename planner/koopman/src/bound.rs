@@ -24,7 +24,7 @@ pub struct ErrorBound {
 impl ErrorBound {
     /// Constant bound `r` for all `h` steps.
     pub fn constant(h: usize, dt: f64, r: f64) -> Self {
-        assert!(h >= 1 && h <= MAX_HORIZON);
+        assert!((1..=MAX_HORIZON).contains(&h));
         let mut base = [0.0; MAX_HORIZON];
         base[..h].iter_mut().for_each(|b| *b = r);
         ErrorBound { h, dt, base, event_pos: 0.0, event_vel: 0.0, relax_tau: 5.0 }
@@ -33,7 +33,7 @@ impl ErrorBound {
     /// From validation errors `errors` (`runs × h`, row-major: error norm of run `r` at step
     /// `k+1`): `base[k] = margin · quantile_q(errors[:, k])`, made non-decreasing in `k`.
     pub fn from_residuals(errors: &[f64], h: usize, dt: f64, quantile: f64, margin: f64) -> Self {
-        assert!(h >= 1 && h <= MAX_HORIZON && errors.len() % h == 0 && !errors.is_empty());
+        assert!((1..=MAX_HORIZON).contains(&h) && errors.len().is_multiple_of(h) && !errors.is_empty());
         assert!((0.0..=1.0).contains(&quantile));
         let runs = errors.len() / h;
         let mut out = Self::constant(h, dt, 0.0);

@@ -15,6 +15,9 @@
 //! [`ErrorBound::radius`]/`grow`/`relax` and [`ConstantVelocity::forecast`] never allocate.
 //! Only `ErrorBound` uses a compile-time maximum ([`bound::MAX_HORIZON`]).
 
+// Index loops mirror the matrix formulas; negated comparisons deliberately treat NaN as bad.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod baseline;
 pub mod bound;
 pub mod debris_state;

@@ -208,7 +208,7 @@ pub struct Rbf {
 impl Rbf {
     /// `centres` is `k × n` row-major.
     pub fn new(n: usize, centres: Vec<f64>, kind: RbfKind) -> Self {
-        assert!(n >= 1 && centres.len() % n == 0, "Rbf: centres must be k × n");
+        assert!(n >= 1 && centres.len().is_multiple_of(n), "Rbf: centres must be k × n");
         Rbf { n, kind, centres, inv_scale: vec![1.0; n] }
     }
     /// Per-coordinate scaling of distances.

@@ -96,11 +96,7 @@ impl Snapshots {
     }
     /// Number of pairs.
     pub fn len(&self) -> usize {
-        if self.n == 0 {
-            0
-        } else {
-            self.x.len() / self.n
-        }
+        self.x.len().checked_div(self.n).unwrap_or(0)
     }
     /// No pairs.
     pub fn is_empty(&self) -> bool {
