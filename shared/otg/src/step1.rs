@@ -53,6 +53,28 @@ pub(crate) struct Problem {
     pub jm: f64,
 }
 
+#[inline(always)]
+fn mul33(a: &[f64; 3], b: &[f64; 3]) -> [f64; 5] {
+    let mut r = [0.0; 5];
+    for i in 0..3 {
+        for k in 0..3 {
+            r[i + k] += a[i] * b[k];
+        }
+    }
+    r
+}
+
+#[inline(always)]
+fn mul35(a: &[f64; 3], b: &[f64; 5]) -> [f64; 7] {
+    let mut r = [0.0; 7];
+    for i in 0..3 {
+        for k in 0..5 {
+            r[i + k] += a[i] * b[k];
+        }
+    }
+    r
+}
+
 struct Cands {
     n: usize,
     t: [f64; MAX_CAND],
@@ -122,6 +144,67 @@ impl Problem {
                 tv[k] = t.eval(x);
             }
             if let Some(pr) = self.build(&tv[..ts.len()], js) {
+                self.add(c, pr);
+            }
+        }
+    }
+
+    /// Like [`Self::family`] for the step-1 families, with fixed-size
+    /// polynomial arithmetic: every phase duration is `T_k(x) / x^s` with
+    /// `T_k` at most quadratic (`s = 1` for NONE, whose durations have a
+    /// `1/u` term, else `0`); the position residual times `x^(3s)` is a
+    /// polynomial of degree <= 6. Same arithmetic (and order) as the Laurent
+    /// assembly.
+    #[inline]
+    fn family5(&self, c: &mut Cands, ts: &[[f64; 3]; 5], js: &[f64; 5], s: usize, lo: f64, hi: f64) {
+        let mut p = [0.0f64; 7];
+        let mut v = [0.0f64; 5];
+        let mut a = [0.0f64; 3];
+        p[3 * s] = self.p0;
+        v[2 * s] = self.v0;
+        a[s] = self.a0;
+        for k in 0..5 {
+            let t = &ts[k];
+            let j = js[k];
+            if t[0] == 0.0 && t[1] == 0.0 && t[2] == 0.0 {
+                continue;
+            }
+            let tj = [t[0] * j, t[1] * j, t[2] * j];
+            let inner = [
+                a[0] * 0.5 + tj[0] * (1.0 / 6.0),
+                a[1] * 0.5 + tj[1] * (1.0 / 6.0),
+                a[2] * 0.5 + tj[2] * (1.0 / 6.0),
+            ];
+            let ti = mul33(t, &inner);
+            let mut w = v;
+            for i in 0..5 {
+                w[i] += ti[i];
+            }
+            let dp = mul35(t, &w);
+            for i in 0..7 {
+                p[i] += dp[i];
+            }
+            if k + 1 < 5 {
+                let q = [a[0] + tj[0] * 0.5, a[1] + tj[1] * 0.5, a[2] + tj[2] * 0.5];
+                let dv = mul33(t, &q);
+                for i in 0..5 {
+                    v[i] += dv[i];
+                }
+                for i in 0..3 {
+                    a[i] += tj[i];
+                }
+            }
+        }
+        p[3 * s] += -self.pf;
+        let mut roots = [0.0; MAX_ROOTS];
+        let nr = real_roots(&p, lo, hi, &mut roots);
+        let mut tv = [0.0; 5];
+        for &x in &roots[..nr] {
+            let sc = if s == 1 { x.powi(-1) } else { 1.0 };
+            for (k, t) in ts.iter().enumerate() {
+                tv[k] = ((t[2] * x + t[1]) * x + t[0]) * sc;
+            }
+            if let Some(pr) = self.build(&tv, js) {
                 self.add(c, pr);
             }
         }
@@ -316,77 +399,63 @@ impl Problem {
                 }
             }
             let js = [jd, 0.0, -jd, 0.0, jd];
-            let k = Lp::constant;
+            let ij = 1.0 / jd;
             // ACC0_ACC1: A1 t2 + A2 t6 = R.
             {
                 let r = dv - (a1 * a1 - a0 * a0) / (2.0 * jd) - (af * af - a2 * a2) / (2.0 * jd);
-                let x = Lp::mono(1.0, 1);
                 let ts = [
-                    k((a1 - a0) / jd),
-                    x,
-                    k((a1 - a2) / jd),
-                    x.scale(-a1 / a2).add_const(r / a2),
-                    k((af - a2) / jd),
+                    [(a1 - a0) / jd, 0.0, 0.0],
+                    [0.0, 1.0, 0.0],
+                    [(a1 - a2) / jd, 0.0, 0.0],
+                    [r / a2, -a1 / a2, 0.0],
+                    [(af - a2) / jd, 0.0, 0.0],
                 ];
-                self.family(&mut c, &ts, &js, f64::NEG_INFINITY, f64::INFINITY);
+                self.family5(&mut c, &ts, &js, 0, f64::NEG_INFINITY, f64::INFINITY);
             }
             // ACC0: A1 = dA, x = A2, t6 = 0.
             {
-                let x = Lp::mono(1.0, 1);
-                let x2 = x.mul(&x);
                 // t2 = (Δv − (2A1² − a0² + af²)/(2jd) + x²/jd) / A1
-                let t2 = x2
-                    .scale(1.0 / (jd * a1))
-                    .add_const((dv - (2.0 * a1 * a1 - a0 * a0 + af * af) / (2.0 * jd)) / a1);
                 let ts = [
-                    k((a1 - a0) / jd),
-                    t2,
-                    x.scale(-1.0 / jd).add_const(a1 / jd),
-                    Lp::ZERO,
-                    x.scale(-1.0 / jd).add_const(af / jd),
+                    [(a1 - a0) / jd, 0.0, 0.0],
+                    [(dv - (2.0 * a1 * a1 - a0 * a0 + af * af) / (2.0 * jd)) / a1, 0.0, 1.0 / (jd * a1)],
+                    [a1 / jd, -1.0 / jd, 0.0],
+                    [0.0; 3],
+                    [af / jd, -1.0 / jd, 0.0],
                 ];
                 // Prune: t2 is largest at x² = A²; t7 >= 0 needs d·x <= d·af.
                 let t2_max = d * (dv + (a0 * a0 - af * af) / (2.0 * jd)) / am;
                 let (lo, hi) = if d > 0.0 { (-am, af) } else { (af, am) };
                 if t2_max >= -1e-12 * (1.0 + dv.abs()) {
-                    self.family(&mut c, &ts, &js, lo - 1e-12 * am, hi + 1e-12 * am);
+                    self.family5(&mut c, &ts, &js, 0, lo - 1e-12 * am, hi + 1e-12 * am);
                 }
             }
             // ACC1: A2 = −dA, x = A1, t2 = 0.
             {
-                let x = Lp::mono(1.0, 1);
-                let x2 = x.mul(&x);
                 // t6 = (Δv − (−a0² − 2A2² + af²)/(2jd) − x²/jd) / A2
-                let t6 = x2
-                    .scale(-1.0 / (jd * a2))
-                    .add_const((dv - (-a0 * a0 - 2.0 * a2 * a2 + af * af) / (2.0 * jd)) / a2);
                 let ts = [
-                    x.scale(1.0 / jd).add_const(-a0 / jd),
-                    Lp::ZERO,
-                    x.scale(1.0 / jd).add_const(-a2 / jd),
-                    t6,
-                    k((af - a2) / jd),
+                    [-a0 / jd, 1.0 / jd, 0.0],
+                    [0.0; 3],
+                    [-a2 / jd, 1.0 / jd, 0.0],
+                    [(dv - (-a0 * a0 - 2.0 * a2 * a2 + af * af) / (2.0 * jd)) / a2, 0.0, -1.0 / (jd * a2)],
+                    [(af - a2) / jd, 0.0, 0.0],
                 ];
                 // Prune: t6 is largest at x² = A²; t1 >= 0 needs d·x >= d·a0.
                 let t6_max = d * ((af * af - a0 * a0) / (2.0 * jd) - dv) / am;
                 let (lo, hi) = if d > 0.0 { (a0, am) } else { (-am, a0) };
                 if t6_max >= -1e-12 * (1.0 + dv.abs()) {
-                    self.family(&mut c, &ts, &js, lo - 1e-12 * am, hi + 1e-12 * am);
+                    self.family5(&mut c, &ts, &js, 0, lo - 1e-12 * am, hi + 1e-12 * am);
                 }
             }
-            // NONE: u = A1 − A2, A1 = (u + C/u)/2, A2 = (C/u − u)/2.
+            // NONE: u = A1 − A2, A1 = (u + C/u)/2, A2 = (C/u − u)/2; the
+            // durations times u are quadratics in u.
             {
                 let cc = jd * dv + (a0 * a0 - af * af) / 2.0;
-                let u = Lp::mono(1.0, 1);
-                let cu = Lp::mono(cc, -1);
-                let a1u = u.add(&cu).scale(0.5);
-                let a2u = cu.add(&u.scale(-1.0)).scale(0.5);
                 let ts = [
-                    a1u.add_const(-a0).scale(1.0 / jd),
-                    Lp::ZERO,
-                    u.scale(1.0 / jd),
-                    Lp::ZERO,
-                    a2u.scale(-1.0).add_const(af).scale(1.0 / jd),
+                    [cc * 0.5 * ij, -a0 * ij, 0.5 * ij],
+                    [0.0; 3],
+                    [0.0, 0.0, ij],
+                    [0.0; 3],
+                    [-(cc * 0.5) * ij, af * ij, 0.5 * ij],
                 ];
                 let (lo, hi) = if d > 0.0 {
                     (1e-300, 2.0 * am * (1.0 + 1e-9))
@@ -395,7 +464,7 @@ impl Problem {
                 };
                 // A1² − A2² = C with |A1|, |A2| <= A needs |C| <= A².
                 if cc.abs() <= am * am * (1.0 + 1e-9) {
-                    self.family(&mut c, &ts, &js, lo, hi);
+                    self.family5(&mut c, &ts, &js, 1, lo, hi);
                 }
             }
         }
