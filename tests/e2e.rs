@@ -64,7 +64,7 @@ fn assert_report_shape(r: &Value) {
 fn realtime_run_reaches_the_goal_with_a_sane_report() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("rt");
-    let out = Command::new(exe()).args(["launch", "--duration", "7", "--report"]).arg(&rp).output().unwrap();
+    let out = Command::new(exe()).args(["launch", "--duration", "9", "--report"]).arg(&rp).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "launch failed\n{stdout}\n{stderr}");
