@@ -54,19 +54,25 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     // g(vc) = T1 + T2 <= tt. Golden-section search for the minimum of g, then
     // bisection for both window edges.
     let g = |vc: f64| -> f64 {
-        match (
-            velocity::min_time(pb.v0, pb.a0, vc, 0.0, pb.am, pb.jm),
-            velocity::min_time(vc, 0.0, pb.vf, pb.af, pb.am, pb.jm),
-        ) {
-            (Some(a), Some(b)) => a.duration() + b.duration(),
-            _ => f64::INFINITY,
-        }
+        velocity::min_time_duration(pb.v0, pb.a0, vc, 0.0, pb.am, pb.jm)
+            + velocity::min_time_duration(vc, 0.0, pb.vf, pb.af, pb.am, pb.jm)
     };
+    // A cruise velocity inside the window: the golden-section search for the
+    // minimum of g stops at the first point with g <= tt.
     let (mut a, mut b) = (lo0, hi0);
     let gr = 0.618_033_988_749_895;
     let (mut c1, mut c2) = (b - gr * (b - a), a + gr * (b - a));
     let (mut g1, mut g2) = (g(c1), g(c2));
-    for _ in 0..45 {
+    let mut inside = None;
+    for _ in 0..64 {
+        if g1 <= tt {
+            inside = Some(c1);
+            break;
+        }
+        if g2 <= tt {
+            inside = Some(c2);
+            break;
+        }
         if g1 < g2 {
             b = c2;
             c2 = c1;
@@ -84,20 +90,55 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
             break;
         }
     }
-    let vbest = 0.5 * (a + b);
-    if g(vbest) > tt {
-        return None;
-    }
-    let edge = |mut inside: f64, mut outside: f64| -> f64 {
-        if g(outside) <= tt {
+    let vbest = match inside {
+        Some(v) => v,
+        None => {
+            let v = 0.5 * (a + b);
+            if g(v) > tt {
+                return None;
+            }
+            v
+        }
+    };
+    // Window edge between `inside` (g <= tt) and `outside`: Illinois on
+    // g − tt (g is continuous), bisection where it stalls.
+    let edge = |mut inside: f64, outside: f64| -> f64 {
+        let mut go = g(outside);
+        if go <= tt {
             return outside;
         }
-        for _ in 0..44 {
-            let m = 0.5 * (inside + outside);
-            if g(m) <= tt {
+        let mut outside = outside;
+        let mut gi = g(inside) - tt;
+        go -= tt;
+        let mut side = 0i8;
+        for it in 0..100 {
+            let mut m = if go.is_finite() && it % 8 != 7 {
+                inside - gi * (outside - inside) / (go - gi)
+            } else {
+                0.5 * (inside + outside)
+            };
+            let (l, h) = if inside < outside { (inside, outside) } else { (outside, inside) };
+            if !(m > l && m < h) {
+                m = 0.5 * (inside + outside);
+                if !(m > l && m < h) {
+                    break;
+                }
+            }
+            let gm = g(m) - tt;
+            if gm <= 0.0 {
                 inside = m;
+                gi = gm;
+                if side == -1 {
+                    go *= 0.5;
+                }
+                side = -1;
             } else {
                 outside = m;
+                go = gm;
+                if side == 1 {
+                    gi *= 0.5;
+                }
+                side = 1;
             }
             if (outside - inside).abs() <= 1e-14 * (1.0 + inside.abs()) {
                 break;

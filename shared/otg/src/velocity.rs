@@ -57,6 +57,40 @@ pub(crate) fn min_time(v0: f64, a0: f64, vf: f64, af: f64, am: f64, jm: f64) -> 
     best
 }
 
+/// Duration of [`min_time`] (`INFINITY` where it has no profile), without
+/// building the profile.
+#[inline]
+pub(crate) fn min_time_duration(v0: f64, a0: f64, vf: f64, af: f64, am: f64, jm: f64) -> f64 {
+    let dv = vf - v0;
+    let mut best = f64::INFINITY;
+    let ss = (a0 * a0 + af * af) / 2.0;
+    let tol_sq = -TOL * (1.0 + a0 * a0 + af * af);
+    for s in [1.0f64, -1.0] {
+        let sj = s * jm;
+        let sq = sj * dv + ss;
+        if sq < tol_sq {
+            continue;
+        }
+        let mut ap = s * sq.max(0.0).sqrt();
+        let mut t2 = 0.0;
+        if ap.abs() > am {
+            ap = s * am;
+            t2 = (dv - (2.0 * am * am - a0 * a0 - af * af) / (2.0 * sj)) / ap;
+        }
+        let t1 = (ap - a0) / sj;
+        let t3 = (ap - af) / sj;
+        let scale = 1.0 + t1.abs() + t3.abs() + t2.abs();
+        if t1 < -TOL * scale || t3 < -TOL * scale || t2 < -TOL * scale || !(t1 + t2 + t3).is_finite() {
+            continue;
+        }
+        let d = t1.max(0.0) + t2.max(0.0) + t3.max(0.0);
+        if d < best {
+            best = d;
+        }
+    }
+    best
+}
+
 /// A profile of exactly duration `tt` from `(v0, a0)` to `(vf, af)` with
 /// `|ap| <= am`, if one exists. The two ramps may have any directions
 /// (`s1`, `s3`): jerk `s1·J` from `a0` to `ap`, hold `ap`, jerk `s3·J` to `af`.
