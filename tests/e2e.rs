@@ -119,32 +119,14 @@ fn lockstep_run_reaches_the_goal_exactly() {
 fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("kill");
-    let mut child = Command::new(exe())
-        .args(["launch", "--duration", "10", "--report"])
-        .arg(&rp)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let mut sim_pid = None;
-    for line in lines.by_ref() {
-        let line = line.unwrap();
-        if let Some(rest) = line.strip_prefix("dkrrt: started sim pid ") {
-            sim_pid = rest.trim().parse::<i32>().ok();
-        }
-        if line.starts_with("dkrrt: all processes alive") {
-            break;
-        }
-    }
-    let sim_pid = sim_pid.expect("launcher announced the sim's pid");
+    let (mut child, rest, sim_pid) = start_launch(&["--duration", "10"], &rp);
     // Mid-motion (the default trajectory takes ~4 s).
     std::thread::sleep(Duration::from_millis(1500));
     // SAFETY: kill(2) on the pid the launcher just reported.
     assert_eq!(unsafe { libc::kill(sim_pid, libc::SIGKILL) }, 0);
     let t0 = Instant::now();
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
     let status = child.wait().unwrap();
+    let rest = rest.join().unwrap();
     assert!(t0.elapsed() < Duration::from_secs(15), "launcher stopped the rest promptly");
     assert!(!status.success(), "a crashed process makes the run fail");
     let r = read_report(&rp);
@@ -162,6 +144,59 @@ fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
         "no stale-state safe hold in {events:?}"
     );
     assert!(rest.join("\n").contains("sim died"), "summary names the crash: {rest:?}");
+    // The dead sim's iceoryx2 resources were removed: nothing of the run is left.
+    let run = r["run_id"].as_str().unwrap();
+    let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
+    assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
+    let _ = std::fs::remove_file(rp);
+}
+
+/// Starts a launch and waits until all its processes are alive. Returns the
+/// child, a thread collecting the rest of its stdout, and the sim's pid.
+fn start_launch(
+    args: &[&str],
+    report: &std::path::Path,
+) -> (std::process::Child, std::thread::JoinHandle<Vec<String>>, i32) {
+    let mut child = Command::new(exe())
+        .arg("launch")
+        .args(args)
+        .arg("--report")
+        .arg(report)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut sim_pid = None;
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if let Some(rest) = line.strip_prefix("dkrrt: started sim pid ") {
+            sim_pid = rest.trim().parse::<i32>().ok();
+        }
+        if line.starts_with("dkrrt: all processes alive") {
+            break;
+        }
+    }
+    let rest = std::thread::spawn(move || lines.map_while(Result::ok).collect::<Vec<_>>());
+    (child, rest, sim_pid.expect("launcher announced the sim's pid"))
+}
+
+#[test]
+fn sigint_to_the_launcher_stops_every_process_gracefully() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("sigint");
+    let (mut child, _rest, _) = start_launch(&["--duration", "10"], &rp);
+    std::thread::sleep(Duration::from_millis(800));
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "an interrupted run is not a completed run");
+    let r = read_report(&rp);
+    assert!(r["stop_reason"].as_str().unwrap().contains("signal 2"), "{}", r["stop_reason"]);
+    for p in r["processes"].as_array().unwrap() {
+        assert_eq!(p["exit_code"], 0, "graceful stop of {p}");
+    }
+    assert!(num(&r, "/duration_s") < 9.0, "stopped early");
     let _ = std::fs::remove_file(rp);
 }
 
