@@ -158,9 +158,6 @@ pub fn run(
         0,
         0,
     );
-    if let Some(p) = stats_path {
-        let text = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
-        std::fs::write(p, text).map_err(|e| format!("goto: write {}: {e}", p.display()))?;
-    }
+    dkrrt_rt::write_stats("goto", stats_path, &rep)?;
     Ok(rep)
 }

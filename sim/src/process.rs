@@ -34,10 +34,6 @@ pub struct SimReport {
     pub rt: RtReport,
 }
 
-fn rt_options(cpu: i32, prio: u32, mlock: bool) -> RtOptions {
-    RtOptions { fifo_priority: prio, mlockall: mlock, cpu: (cpu >= 0).then_some(cpu as usize) }
-}
-
 /// Runs the simulator until the scenario's duration has elapsed in plant
 /// time, or SIGINT/SIGTERM. The last published state carries `FLAG_END_OF_RUN`.
 ///
@@ -53,13 +49,10 @@ pub fn run(
     signals::install();
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
-    // Real-time scheduling only when paced by the clock: lockstep loops spin,
-    // and spinning SCHED_FIFO processes would starve the rest of the machine.
-    let rt = if sc.run.mode == Mode::Realtime {
-        rtsetup::apply(&rt_options(sc.sim.cpu, sc.sim.fifo_priority, sc.sim.mlockall))
-    } else {
-        RtReport::default()
-    };
+    let rt = rtsetup::apply_if(
+        sc.run.mode == Mode::Realtime,
+        &RtOptions::new(sc.sim.cpu, sc.sim.fifo_priority, sc.sim.mlockall),
+    );
     for w in &rt.warnings {
         eprintln!("sim: warning: {w}");
     }
@@ -181,9 +174,6 @@ pub fn run(
         stopped_by_signal,
         rt,
     };
-    if let Some(p) = stats_path {
-        let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-        std::fs::write(p, text).map_err(|e| format!("sim: write {}: {e}", p.display()))?;
-    }
+    dkrrt_rt::write_stats("sim", stats_path, &report)?;
     Ok(report)
 }

@@ -54,10 +54,6 @@ pub struct TrackerReport {
     pub rt: RtReport,
 }
 
-fn rt_options(cpu: i32, prio: u32, mlock: bool) -> RtOptions {
-    RtOptions { fifo_priority: prio, mlockall: mlock, cpu: (cpu >= 0).then_some(cpu as usize) }
-}
-
 fn log_event(e: &ModeEvent) {
     let safe = matches!(e.reason, Reason::StaleState | Reason::InvalidTrajectory);
     eprintln!(
@@ -70,18 +66,25 @@ fn log_event(e: &ModeEvent) {
     );
 }
 
+/// Logs a mode event and keeps it for the report (preallocated: no growth).
+fn record(events: &mut Vec<ModeEvent>, dropped: &mut u64, e: ModeEvent) {
+    if events.len() < MAX_EVENTS {
+        events.push(e);
+    } else {
+        *dropped += 1;
+    }
+    log_event(&e);
+}
+
 /// Runs the tracker until the plant signals the end of the run, or SIGINT/SIGTERM.
 pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<TrackerReport, String> {
     signals::install();
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
-    // Real-time scheduling only when paced by the clock: lockstep loops spin,
-    // and spinning SCHED_FIFO processes would starve the rest of the machine.
-    let rt = if sc.run.mode == Mode::Realtime {
-        rtsetup::apply(&rt_options(sc.tracker.cpu, sc.tracker.fifo_priority, sc.tracker.mlockall))
-    } else {
-        RtReport::default()
-    };
+    let rt = rtsetup::apply_if(
+        sc.run.mode == Mode::Realtime,
+        &RtOptions::new(sc.tracker.cpu, sc.tracker.fifo_priority, sc.tracker.mlockall),
+    );
     for w in &rt.warnings {
         eprintln!("tracker: warning: {w}");
     }
@@ -156,23 +159,13 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Tracke
         // 2. New trajectory?
         if traj_sub.latest(&mut traj, &lim).map_err(|e| e.to_string())? {
             if let Some(e) = ctrl.set_trajectory(&traj) {
-                if events.len() < MAX_EVENTS {
-                    events.push(e);
-                } else {
-                    events_dropped += 1;
-                }
-                log_event(&e);
+                record(&mut events, &mut events_dropped, e);
             }
         }
         if traj_sub.rejected > traj_rejected_seen {
             traj_rejected_seen = traj_sub.rejected;
             if let Some(e) = ctrl.reject_trajectory(state.header.stamp_ns) {
-                if events.len() < MAX_EVENTS {
-                    events.push(e);
-                } else {
-                    events_dropped += 1;
-                }
-                log_event(&e);
+                record(&mut events, &mut events_dropped, e);
             }
         }
 
@@ -180,12 +173,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Tracke
         let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
         let out = ctrl.tick(input);
         if let Some(e) = out.event {
-            if events.len() < MAX_EVENTS {
-                events.push(e);
-            } else {
-                events_dropped += 1;
-            }
-            log_event(&e);
+            record(&mut events, &mut events_dropped, e);
         }
         if fresh {
             last_seq = Some(state.header.seq);
@@ -258,9 +246,6 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Tracke
         stopped_by_signal,
         rt,
     };
-    if let Some(p) = stats_path {
-        let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-        std::fs::write(p, text).map_err(|e| format!("tracker: write {}: {e}", p.display()))?;
-    }
+    dkrrt_rt::write_stats("tracker", stats_path, &report)?;
     Ok(report)
 }

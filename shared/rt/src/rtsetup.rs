@@ -12,6 +12,23 @@ pub struct RtOptions {
     pub cpu: Option<usize>,
 }
 
+impl RtOptions {
+    /// From scenario values: `cpu < 0` means no pinning, priority 0 no SCHED_FIFO.
+    pub fn new(cpu: i32, fifo_priority: u32, mlockall: bool) -> Self {
+        RtOptions { fifo_priority, mlockall, cpu: (cpu >= 0).then_some(cpu as usize) }
+    }
+}
+
+/// Applies `opt` only for clock-paced (real-time) loops: lockstep loops spin,
+/// and spinning SCHED_FIFO processes would starve the rest of the machine.
+pub fn apply_if(realtime: bool, opt: &RtOptions) -> RtReport {
+    if realtime {
+        apply(opt)
+    } else {
+        RtReport::default()
+    }
+}
+
 /// Sets the calling thread's timer slack to 1 ns (the default 50 µs slack
 /// would delay every absolute-deadline wake-up of a normal-priority thread).
 pub fn tight_timer_slack() -> bool {
