@@ -204,6 +204,100 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
     cnt
 }
 
+/// Cheap proof that the polynomial (ascending coefficients, 4 to 7 of them)
+/// stays far from zero on `[lo, hi]`, so that [`real_roots`] finds nothing
+/// there, not even a touching root: its Bernstein coefficients on the
+/// interval, or on each half or quarter of it (de Casteljau), all have one
+/// sign and exceed a margin far above rounding noise and the touching-root
+/// threshold.
+pub(crate) fn excluded(c: &[f64], lo: f64, hi: f64) -> bool {
+    let mut n = c.len();
+    while n > 0 && c[n - 1] == 0.0 {
+        n -= 1;
+    }
+    let c = &c[..n];
+    if !(4..=7).contains(&n) || !(lo.is_finite() && hi.is_finite()) || !(hi > lo) {
+        return false;
+    }
+    let m = n - 1;
+    let w = hi - lo;
+    let x = (lo.abs() + w).max(1.0);
+    let (mut mag, mut xp, mut cmax) = (0.0f64, 1.0f64, 0.0f64);
+    for &ck in c {
+        mag += ck.abs() * xp;
+        xp *= x;
+        cmax = cmax.max(ck.abs());
+    }
+    let thr = 1e-10 * (mag + cmax * xp);
+    if !thr.is_finite() {
+        return false;
+    }
+    // Taylor shift to lo and scale to [0, 1].
+    let mut a = [0.0f64; 7];
+    a[..n].copy_from_slice(c);
+    for i in 0..m {
+        for k in (i..m).rev() {
+            a[k] += lo * a[k + 1];
+        }
+    }
+    let mut wp = 1.0;
+    for ak in a.iter_mut().take(n) {
+        *ak *= wp;
+        wp *= w;
+    }
+    // Bernstein coefficients b_i = Σ_{k<=i} C(i,k)/C(m,k) a_k.
+    const BIN: [[f64; 7]; 7] = [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 2.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [1.0, 3.0, 3.0, 1.0, 0.0, 0.0, 0.0],
+        [1.0, 4.0, 6.0, 4.0, 1.0, 0.0, 0.0],
+        [1.0, 5.0, 10.0, 10.0, 5.0, 1.0, 0.0],
+        [1.0, 6.0, 15.0, 20.0, 15.0, 6.0, 1.0],
+    ];
+    let mut b = [0.0f64; 7];
+    for i in 0..n {
+        let mut s = 0.0;
+        for k in 0..=i {
+            s += BIN[i][k] / BIN[m][k] * a[k];
+        }
+        b[i] = s;
+    }
+    let pos = b[0] > 0.0;
+    let ok = |v: &[f64]| if pos { v.iter().all(|&x| x > thr) } else { v.iter().all(|&x| x < -thr) };
+    if !(b[0].abs() > thr && b[m].abs() > thr && (b[m] > 0.0) == pos) {
+        return false;
+    }
+    if ok(&b[..n]) {
+        return true;
+    }
+    fn split(b: &[f64], l: &mut [f64; 7], r: &mut [f64; 7]) {
+        let n = b.len();
+        let mut t = [0.0f64; 7];
+        t[..n].copy_from_slice(b);
+        for lvl in 0..n {
+            l[lvl] = t[0];
+            r[n - 1 - lvl] = t[n - 1 - lvl];
+            for k in 0..n - 1 - lvl {
+                t[k] = 0.5 * (t[k] + t[k + 1]);
+            }
+        }
+    }
+    let (mut l, mut r) = ([0.0f64; 7], [0.0f64; 7]);
+    split(&b[..n], &mut l, &mut r);
+    for half in [l, r] {
+        if ok(&half[..n]) {
+            continue;
+        }
+        let (mut l2, mut r2) = ([0.0f64; 7], [0.0f64; 7]);
+        split(&half[..n], &mut l2, &mut r2);
+        if !(ok(&l2[..n]) && ok(&r2[..n])) {
+            return false;
+        }
+    }
+    true
+}
+
 /// Root in `[a, b]` where the sign changes: Newton steps safeguarded by
 /// bisection, stopping once the residual is at rounding-noise level.
 fn bracketed(c: &[f64], mut a: f64, mut b: f64, fa: f64) -> f64 {
@@ -263,6 +357,46 @@ mod tests {
         let n = real_roots(&[2.0, -3.0, 0.0, 1.0], -5.0, 5.0, &mut out);
         assert!(out[..n].iter().any(|x| (x - 1.0).abs() < 1e-7));
         assert!(out[..n].iter().any(|x| (x + 2.0).abs() < 1e-12));
+    }
+
+    #[test]
+    fn bernstein_exclusion_is_conservative() {
+        // (x-1)(x-2)(x-3)(x+0.5): roots inside [0, 4] must not be excluded.
+        let c = [-3.0, -0.5, 8.0, -5.5, 1.0];
+        assert!(!excluded(&c, 0.0, 4.0));
+        assert!(!excluded(&c, 2.5, 3.5));
+        assert!(excluded(&c, 3.5, 9.0));
+        assert!(excluded(&c, -0.4, 0.9));
+        // Random polynomials: exclusion implies no sign change and no root found.
+        let mut s = 12345u64;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut n_excl = 0;
+        for _ in 0..20000 {
+            let n = 4 + (rnd().abs() * 3.999) as usize;
+            let mut c = [0.0; 7];
+            for v in c.iter_mut().take(n) {
+                *v = rnd() * 10f64.powf(rnd() * 3.0);
+            }
+            let lo = rnd() * 3.0;
+            let hi = lo + rnd().abs() * 3.0;
+            if excluded(&c[..n], lo, hi) {
+                n_excl += 1;
+                let mut out = [0.0; MAX_ROOTS];
+                assert_eq!(real_roots(&c[..n], lo, hi, &mut out), 0, "{c:?} {lo} {hi}");
+                let f0 = horner(&c[..n], lo);
+                for i in 0..=2000 {
+                    let x = lo + (hi - lo) * i as f64 / 2000.0;
+                    let f = horner(&c[..n], x);
+                    assert!(f != 0.0 && (f > 0.0) == (f0 > 0.0), "{c:?} {lo} {hi}");
+                }
+            }
+        }
+        assert!(n_excl > 1000);
     }
 
     #[test]

@@ -53,6 +53,33 @@ pub(crate) struct Problem {
     pub jm: f64,
 }
 
+/// ACC0 / ACC1: the plateau duration `ts[k] = q0 + q2 x²` (`q2 > 0`) must not
+/// be negative (beyond the profile check's rounding tolerance, bounded here
+/// from the other durations' largest values), so `|x| >= r` when `q0 < 0`.
+/// Returns `[lo, hi]` narrowed to the one side that remains, or unchanged
+/// when both remain (`lo > hi`: nothing remains).
+fn hold_window(ts: &[[f64; 3]; 5], k: usize, lo: f64, hi: f64, am: f64, jm: f64) -> (f64, f64) {
+    let (q0, q2) = (ts[k][0], ts[k][2]);
+    if !(q0 < 0.0 && q2 > 0.0) {
+        return (lo, hi);
+    }
+    let others = (ts[0][0].abs() + ts[4][0].abs()) + 6.0 * am / jm;
+    let tol = 1e-9 * (1.0 + others + q0.abs() + q2 * am * am);
+    let q0t = q0 + tol;
+    if q0t >= 0.0 {
+        return (lo, hi);
+    }
+    let r = (-q0t / q2).sqrt() * (1.0 - 1e-9);
+    let neg = lo <= -r;
+    let pos = hi >= r;
+    match (neg, pos) {
+        (true, true) => (lo, hi),
+        (true, false) => (lo, hi.min(-r)),
+        (false, true) => (lo.max(r), hi),
+        (false, false) => (1.0, 0.0),
+    }
+}
+
 #[inline(always)]
 fn mul33(a: &[f64; 3], b: &[f64; 3]) -> [f64; 5] {
     let mut r = [0.0; 5];
@@ -197,7 +224,13 @@ impl Problem {
         }
         p[3 * s] += -self.pf;
         let mut roots = [0.0; MAX_ROOTS];
-        let nr = real_roots(&p, lo, hi, &mut roots);
+        // Most ACC0 / ACC1 quartics have no root in their (narrowed) window:
+        // a cheap Bernstein-bound proof skips the root isolation.
+        let nr = if s == 0 && lo.is_finite() && crate::poly::excluded(&p, lo, hi) {
+            0
+        } else {
+            real_roots(&p, lo, hi, &mut roots)
+        };
         let mut tv = [0.0; 5];
         for &x in &roots[..nr] {
             let sc = if s == 1 { x.powi(-1) } else { 1.0 };
@@ -426,7 +459,10 @@ impl Problem {
                 let t2_max = d * (dv + (a0 * a0 - af * af) / (2.0 * jd)) / am;
                 let (lo, hi) = if d > 0.0 { (-am, af) } else { (af, am) };
                 if t2_max >= -1e-12 * (1.0 + dv.abs()) {
-                    self.family5(&mut c, &ts, &js, 0, lo - 1e-12 * am, hi + 1e-12 * am);
+                    let (lo, hi) = hold_window(&ts, 1, lo - 1e-12 * am, hi + 1e-12 * am, am, jm);
+                    if lo <= hi {
+                        self.family5(&mut c, &ts, &js, 0, lo, hi);
+                    }
                 }
             }
             // ACC1: A2 = −dA, x = A1, t2 = 0.
@@ -443,7 +479,10 @@ impl Problem {
                 let t6_max = d * ((af * af - a0 * a0) / (2.0 * jd) - dv) / am;
                 let (lo, hi) = if d > 0.0 { (a0, am) } else { (-am, a0) };
                 if t6_max >= -1e-12 * (1.0 + dv.abs()) {
-                    self.family5(&mut c, &ts, &js, 0, lo - 1e-12 * am, hi + 1e-12 * am);
+                    let (lo, hi) = hold_window(&ts, 3, lo - 1e-12 * am, hi + 1e-12 * am, am, jm);
+                    if lo <= hi {
+                        self.family5(&mut c, &ts, &js, 0, lo, hi);
+                    }
                 }
             }
             // NONE: u = A1 − A2, A1 = (u + C/u)/2, A2 = (C/u − u)/2; the
@@ -457,11 +496,13 @@ impl Problem {
                     [0.0; 3],
                     [-(cc * 0.5) * ij, af * ij, 0.5 * ij],
                 ];
-                let (lo, hi) = if d > 0.0 {
-                    (1e-300, 2.0 * am * (1.0 + 1e-9))
-                } else {
-                    (-2.0 * am * (1.0 + 1e-9), -1e-300)
-                };
+                // |A1|, |A2| <= A (with a margin above the limit check's
+                // tolerance) bound |u| to [|C|/(A + √(A² − |C|)), A + √(A² − |C|)].
+                let amt = am * (1.0 + 1e-8) + 1e-10 * (1.0 + am);
+                let cabs = cc.abs();
+                let umin = cabs / (amt + (amt * amt - cabs).max(0.0).sqrt()) * (1.0 - 1e-9);
+                let umax = (amt + (amt * amt - cabs).max(0.0).sqrt()).min(2.0 * am * (1.0 + 1e-9));
+                let (lo, hi) = if d > 0.0 { (umin.max(1e-300), umax) } else { (-umax, -umin.max(1e-300)) };
                 // A1² − A2² = C with |A1|, |A2| <= A needs |C| <= A².
                 if cc.abs() <= am * am * (1.0 + 1e-9) {
                     self.family5(&mut c, &ts, &js, 1, lo, hi);
