@@ -1,6 +1,10 @@
 //! Small fixed-size Laurent polynomials and a bracketing real-root finder,
 //! used to solve the profile families' equations in closed form.
 
+// The Laurent polynomials are the reference assembly the tests compare the
+// fixed-size family equations against.
+#![cfg_attr(not(test), allow(dead_code))]
+
 /// Exponent offset: coefficient `c[k]` multiplies `x^(k - OFF)`.
 const OFF: i32 = 4;
 pub(crate) const LEN: usize = 11;
@@ -216,7 +220,7 @@ pub(crate) fn excluded(c: &[f64], lo: f64, hi: f64) -> bool {
         n -= 1;
     }
     let c = &c[..n];
-    if !(4..=7).contains(&n) || !(lo.is_finite() && hi.is_finite()) || !(hi > lo) {
+    if !((4..=7).contains(&n) && lo.is_finite() && hi.is_finite() && hi > lo) {
         return false;
     }
     let m = n - 1;

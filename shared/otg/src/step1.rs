@@ -20,7 +20,9 @@
 //! Newton polishing, and every root is turned into a numeric profile that is
 //! verified by exact forward integration and limit checks before acceptance.
 
-use crate::poly::{real_roots, Lp, MAX_ROOTS};
+#[cfg(test)]
+use crate::poly::Lp;
+use crate::poly::{real_roots, MAX_ROOTS};
 use crate::profile::{integrate, raw_within_limits, Profile};
 use crate::velocity;
 
@@ -148,6 +150,7 @@ impl Problem {
 
     /// Solve a family whose phase durations are Laurent polynomials in `x`:
     /// position residual roots in `[lo, hi]` become candidates.
+    #[cfg(test)]
     fn family(&self, c: &mut Cands, ts: &[Lp], js: &[f64], lo: f64, hi: f64) {
         let (mut p, mut v, mut a) = (Lp::constant(self.p0), Lp::constant(self.v0), Lp::constant(self.a0));
         for (k, (t, &j)) in ts.iter().zip(js).enumerate() {
@@ -244,9 +247,147 @@ impl Problem {
     }
 
     /// Step-2 families with a prescribed duration `tt` (five merged phases
+    /// `dJ, 0, −dJ, 0, dJ` where one hold is at a free acceleration level,
+    /// holds at the start / end / junction, two holds, four ramps); the
+    /// phase durations (times `x` where they have a `1/x` term) are
+    /// quadratics in the family's parameter `x`. Returns a verified profile
+    /// of duration `tt`.
+    pub fn with_duration_holds(&self, tt: f64) -> Option<Profile> {
+        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let (v0, a0, vf, af, am, jm) = (self.v0, self.a0, self.vf, self.af, self.am, self.jm);
+        let dv = vf - v0;
+        let z = [0.0; 3];
+        let win = |d: f64, open: bool| {
+            let e = if open { 1e-300 } else { 0.0 };
+            if d > 0.0 {
+                (e, 2.0 * am * (1.0 + 1e-9))
+            } else {
+                (-2.0 * am * (1.0 + 1e-9), -e)
+            }
+        };
+        // Free hold level: w = A1 − A2.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let js = [jd, 0.0, -jd, 0.0, jd];
+            let kk = tt - (af - a0) / jd;
+            if kk == 0.0 {
+                continue;
+            }
+            let ik = 1.0 / kk;
+            let hold = [tt - (af - a0) / jd, -2.0 / jd, 0.0];
+            let base = (af * af - a0 * a0) / (2.0 * jd);
+            let (lo, hi) = win(d, false);
+            // Hold at A1: A1 = (w²/jd + Δv − base)/kk, A2 = A1 − w.
+            let a1 = [(dv - base) * ik, 0.0, ij * ik];
+            let ts = [
+                [(a1[0] - a0) * ij, 0.0, a1[2] * ij],
+                hold,
+                [0.0, ij, 0.0],
+                z,
+                [(-a1[0] + af) * ij, ij, -a1[2] * ij],
+            ];
+            self.family5(&mut c, &ts, &js, 0, lo, hi);
+            // Hold at A2: A2 = (−w²/jd + Δv − base)/kk, A1 = A2 + w.
+            let a2 = [(dv - base) * ik, 0.0, (-1.0 / jd) * ik];
+            let ts = [
+                [(a2[0] - a0) * ij, ij, a2[2] * ij],
+                z,
+                [0.0, ij, 0.0],
+                hold,
+                [(-a2[0] + af) * ij, 0.0, -a2[2] * ij],
+            ];
+            self.family5(&mut c, &ts, &js, 0, lo, hi);
+        }
+        // Hold at the start (at a0) or at the end (at af), then / before three
+        // ramps `−dJ, dJ, −dJ` through M and A2; w = A2 − M,
+        // M = ((Δv − ah·h − (a0² − af²)/(2jd))·jd/w − w)/2 (durations times w).
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let h = [0.0, tt - (a0 - af) / jd, -2.0 / jd];
+            let (lo, hi) = win(d, true);
+            for which in 0..2 {
+                let ah = if which == 0 { a0 } else { af };
+                let k0 = dv - (a0 * a0 - af * af) / (2.0 * jd);
+                let rest = [h[1] * -ah + k0, h[2] * -ah];
+                // M: exponents −1, 0, 1
+                let m = [rest[0] * jd * 0.5, rest[1] * jd * 0.5, -0.5];
+                let r1 = [-m[0] * ij, (-m[1] + a0) * ij, 0.5 * ij];
+                let r2 = [0.0, 0.0, ij];
+                let r3 = [m[0] * ij, (m[1] - af) * ij, 0.5 * ij];
+                if which == 0 {
+                    self.family5(&mut c, &[h, r1, r2, r3, z], &[0.0, -jd, jd, -jd, 0.0], 1, lo, hi);
+                } else {
+                    self.family5(&mut c, &[r1, r2, r3, h, z], &[-jd, jd, -jd, 0.0, 0.0], 1, lo, hi);
+                }
+            }
+        }
+        // Three ramps `−dJ, dJ, −dJ` through M and A2 with a hold at M or at
+        // A2 (w = A2 − M); M follows linearly from the velocity equation.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let kk = tt - (a0 - af) / jd;
+            if kk == 0.0 {
+                continue;
+            }
+            let ik = 1.0 / kk;
+            let h = [kk, -2.0 / jd, 0.0];
+            let base = dv - (a0 * a0 - af * af) / (2.0 * jd);
+            let (lo, hi) = win(d, false);
+            for which in 0..2 {
+                let num = if which == 0 { [base, 0.0, -1.0 / jd] } else { [base, -kk, -1.0 / jd + 2.0 / jd] };
+                let m = [num[0] * ik, num[1] * ik, num[2] * ik];
+                let r1 = [(-m[0] + a0) * ij, -m[1] * ij, -m[2] * ij];
+                let r2 = [0.0, ij, 0.0];
+                let r3 = [(m[0] - af) * ij, (m[1] + 1.0) * ij, m[2] * ij];
+                if which == 0 {
+                    self.family5(&mut c, &[r1, h, r2, r3, z], &[-jd, 0.0, jd, -jd, 0.0], 0, lo, hi);
+                } else {
+                    self.family5(&mut c, &[r1, r2, h, r3, z], &[-jd, jd, 0.0, -jd, 0.0], 0, lo, hi);
+                }
+            }
+        }
+        // Two holds joined by same-direction ramps: hold a0, −dJ to M, hold M,
+        // −dJ to af; parameter y = M − a0, the second hold from the velocity
+        // equation (∝ 1/y).
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let kk = tt - (a0 - af) / jd;
+            let r = dv - a0 * kk - (a0 * a0 - af * af) / (2.0 * jd);
+            let h1 = [-r, kk, 0.0];
+            let r1 = [0.0, 0.0, -1.0 / jd];
+            let h2 = [r, 0.0, 0.0];
+            let r2 = [0.0, (a0 - af) * ij, ij];
+            let (lo, hi) = win(-d, true);
+            self.family5(&mut c, &[h1, r1, h2, r2, z], &[0.0, -jd, 0.0, -jd, 0.0], 1, lo, hi);
+        }
+        // Four ramps `dJ, −dJ, dJ, −dJ` without holds (a0 → A1 → M → A2 → af).
+        // With x = A1 − M, y = A2 − M the duration gives A1 + A2 − M = S and the
+        // velocity A1² + A2² − M² = Q, hence x·y = (S² − Q)/2 = P, y = P/x.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let ss = (jd * tt + a0 + af) / 2.0;
+            let q = jd * dv + (a0 * a0 + af * af) / 2.0;
+            let pp = (ss * ss - q) / 2.0;
+            let t1 = [-pp * ij, (ss - a0) * ij, 0.0];
+            let t2 = [0.0, 0.0, ij];
+            let t3 = [pp * ij, 0.0, 0.0];
+            let t4 = [0.0, (ss - af) * ij, -ij];
+            let (lo, hi) = win(d, true);
+            self.family5(&mut c, &[t1, t2, t3, t4, z], &[jd, -jd, jd, -jd, 0.0], 1, lo, hi);
+        }
+        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
+    }
+
+    /// Step-2 families with a prescribed duration `tt` (five merged phases
     /// `dJ, 0, −dJ, 0, dJ` where one hold is at a free acceleration level),
     /// parameterized by `w = A1 − A2`; returns a verified profile of duration `tt`.
-    pub fn with_duration_holds(&self, tt: f64) -> Option<Profile> {
+    #[cfg(test)]
+    pub fn with_duration_holds_lp(&self, tt: f64) -> Option<Profile> {
         let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
         let (v0, a0, vf, af, am, jm) = (self.v0, self.a0, self.vf, self.af, self.am, self.jm);
         let dv = vf - v0;
@@ -538,5 +679,49 @@ impl Problem {
             k += 2;
         }
         Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn holds_families_match_the_laurent_assembly() {
+        let mut s = 987654321u64;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut found, mut n) = (0, 0);
+        while n < 4000 {
+            let vm = 0.08 + 16.0 * rnd();
+            let am = 0.08 + 16.0 * rnd();
+            let jm = 0.08 + 16.0 * rnd();
+            let a0 = (2.0 * rnd() - 1.0) * am;
+            let af = (2.0 * rnd() - 1.0) * am;
+            let v0 = (2.0 * rnd() - 1.0) * (vm - a0 * a0 / (2.0 * jm)).max(0.0);
+            let vf = (2.0 * rnd() - 1.0) * (vm - af * af / (2.0 * jm)).max(0.0);
+            let pb = Problem { p0: 0.0, v0, a0, pf: 8.0 * (rnd() - 0.5), vf, af, vm, am, jm };
+            let Some(st) = pb.solve() else { continue };
+            n += 1;
+            for k in 0..3 {
+                let tt = st.t_min * (1.0 + [1e-6, 0.01, 0.5][k] * rnd());
+                let a = pb.with_duration_holds(tt);
+                let b = pb.with_duration_holds_lp(tt);
+                assert_eq!(a.is_some(), b.is_some(), "{pb:?} {tt}");
+                if let (Some(a), Some(b)) = (a, b) {
+                    found += 1;
+                    assert!((a.duration() - b.duration()).abs() < 1e-9 * (1.0 + tt));
+                    assert_eq!(a.n, b.n, "{pb:?} {tt}");
+                    for i in 0..a.n {
+                        assert!((a.t[i] - b.t[i]).abs() < 1e-7 * (1.0 + tt), "{pb:?} {tt} {a:?} {b:?}");
+                    }
+                }
+            }
+        }
+        assert!(found > 1000, "{found}");
     }
 }

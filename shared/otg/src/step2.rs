@@ -148,51 +148,71 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     };
     let lo = edge(vbest, lo0);
     let hi = edge(vbest, hi0);
+    // Illinois (modified regula falsi) on a sign change of the residual,
+    // which is continuous where it is defined.
+    let bracket = |x0: f64, f0: f64, x1: f64, f1: f64| -> Option<Profile> {
+        let (mut a, mut b, mut fa, mut fb) = (x0, x1, f0, f1);
+        let mut side = 0i8;
+        for _ in 0..100 {
+            let mut m = (a * fb - b * fa) / (fb - fa);
+            if !(m > a && m < b) {
+                m = 0.5 * (a + b);
+            }
+            let Some((fm, ..)) = cruise(pb, tt, m) else { break };
+            if (fm <= 0.0) == (fa <= 0.0) {
+                a = m;
+                fa = fm;
+                if side == -1 {
+                    fb *= 0.5;
+                }
+                side = -1;
+            } else {
+                b = m;
+                fb = fm;
+                if side == 1 {
+                    fa *= 0.5;
+                }
+                side = 1;
+            }
+            if fm.abs() <= 1e-14 * (1.0 + (pb.pf - pb.p0).abs()) || b - a <= 1e-15 * (a.abs() + b.abs()) {
+                break;
+            }
+        }
+        for x in [a, b] {
+            if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
+                if let Some(pr) = cruise_profile(pb, &h1, t4, &h2) {
+                    if pb.accept(&pr) {
+                        return Some(pr);
+                    }
+                }
+            }
+        }
+        None
+    };
+    // Usually the residual changes sign over the whole window: try that
+    // first, then scan the window for sign changes.
+    let ends = (cruise(pb, tt, lo).map(|r| r.0), cruise(pb, tt, hi).map(|r| r.0));
+    if let (Some(f0), Some(f1)) = ends {
+        if hi > lo && ((f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0) {
+            if let Some(pr) = bracket(lo, f0, hi, f1) {
+                return Some(pr);
+            }
+        }
+    }
     let mut prev: Option<(f64, f64)> = None;
     for i in 0..=K {
         let vc = lo + (hi - lo) * i as f64 / K as f64;
-        let cur = cruise(pb, tt, vc).map(|(f, ..)| (vc, f));
+        let cur = if i == 0 {
+            ends.0.map(|f| (vc, f))
+        } else if i == K {
+            ends.1.map(|f| (hi, f))
+        } else {
+            cruise(pb, tt, vc).map(|(f, ..)| (vc, f))
+        };
         if let (Some((x0, f0)), Some((x1, f1))) = (prev, cur) {
             if (f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0 {
-                // Illinois (modified regula falsi); the residual is continuous
-                // where it is defined.
-                let (mut a, mut b, mut fa, mut fb) = (x0, x1, f0, f1);
-                let mut side = 0i8;
-                for _ in 0..100 {
-                    let mut m = (a * fb - b * fa) / (fb - fa);
-                    if !(m > a && m < b) {
-                        m = 0.5 * (a + b);
-                    }
-                    let Some((fm, ..)) = cruise(pb, tt, m) else { break };
-                    if (fm <= 0.0) == (fa <= 0.0) {
-                        a = m;
-                        fa = fm;
-                        if side == -1 {
-                            fb *= 0.5;
-                        }
-                        side = -1;
-                    } else {
-                        b = m;
-                        fb = fm;
-                        if side == 1 {
-                            fa *= 0.5;
-                        }
-                        side = 1;
-                    }
-                    if fm.abs() <= 1e-14 * (1.0 + (pb.pf - pb.p0).abs())
-                        || b - a <= 1e-15 * (a.abs() + b.abs())
-                    {
-                        break;
-                    }
-                }
-                for x in [a, b] {
-                    if let Some((_, h1, t4, h2)) = cruise(pb, tt, x) {
-                        if let Some(pr) = cruise_profile(pb, &h1, t4, &h2) {
-                            if pb.accept(&pr) {
-                                return Some(pr);
-                            }
-                        }
-                    }
+                if let Some(pr) = bracket(x0, f0, x1, f1) {
+                    return Some(pr);
                 }
             }
         }
