@@ -123,6 +123,10 @@ impl Problem {
     /// noise) if it respects the limits (see [`raw_within_limits`]).
     pub fn build(&self, t: &[f64], j: &[f64]) -> Option<Profile> {
         let scale: f64 = 1e-10 * (1.0 + t.iter().map(|x| x.abs()).sum::<f64>());
+        // Durations first (cheap, and most rejected roots fail here).
+        if !t.iter().all(|&ti| ti >= -scale && ti.is_finite()) {
+            return None;
+        }
         let mut tc = [0.0; 7];
         for (k, &ti) in t.iter().enumerate() {
             tc[k] = ti.max(0.0);
@@ -132,9 +136,6 @@ impl Problem {
         }
         let mut pr = Profile::new(self.p0, self.v0, self.a0);
         for (&ti, &ji) in t.iter().zip(j) {
-            if !(ti >= -scale) || !ti.is_finite() {
-                return None;
-            }
             pr.push(ti, ji);
         }
         Some(pr)
@@ -641,11 +642,23 @@ impl Problem {
                 // tolerance) bound |u| to [|C|/(A + √(A² − |C|)), A + √(A² − |C|)].
                 let amt = am * (1.0 + 1e-8) + 1e-10 * (1.0 + am);
                 let cabs = cc.abs();
-                let umin = cabs / (amt + (amt * amt - cabs).max(0.0).sqrt()) * (1.0 - 1e-9);
+                let mut umin = cabs / (amt + (amt * amt - cabs).max(0.0).sqrt()) * (1.0 - 1e-9);
+                // t1 >= 0 (A1 >= a0) and t5 >= 0 (A2 <= af) in the direction's
+                // frame (signs flipped for d < 0), with a margin above the
+                // duration check's tolerance (durations are at most 6A/J):
+                // for C <= 0, |u| >= a0 + √(a0² − C); for C >= 0, |u| >= √(af² + C) − af.
+                let da = 1e-8 * (jm + 6.0 * am);
+                let (a0d, afd) = (d * a0 - da, d * af + da);
+                if cc <= 0.0 {
+                    umin = umin.max((a0d + (a0d * a0d - cc).sqrt()) * (1.0 - 1e-9));
+                }
+                if cc >= 0.0 {
+                    umin = umin.max(((afd * afd + cc).sqrt() - afd) * (1.0 - 1e-9));
+                }
                 let umax = (amt + (amt * amt - cabs).max(0.0).sqrt()).min(2.0 * am * (1.0 + 1e-9));
                 let (lo, hi) = if d > 0.0 { (umin.max(1e-300), umax) } else { (-umax, -umin.max(1e-300)) };
                 // A1² − A2² = C with |A1|, |A2| <= A needs |C| <= A².
-                if cc.abs() <= am * am * (1.0 + 1e-9) {
+                if cc.abs() <= am * am * (1.0 + 1e-9) && lo <= hi {
                     self.family5(&mut c, &ts, &js, 1, lo, hi);
                 }
             }

@@ -90,14 +90,15 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
             break;
         }
     }
-    let vbest = match inside {
-        Some(v) => v,
+    let (vbest, gbest) = match inside {
+        Some(v) => (v, if v == c1 { g1 } else { g2 }),
         None => {
             let v = 0.5 * (a + b);
-            if g(v) > tt {
+            let gv = g(v);
+            if gv > tt {
                 return None;
             }
-            v
+            (v, gv)
         }
     };
     // Window edge between `inside` (g <= tt) and `outside`: Illinois on
@@ -108,7 +109,7 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
             return outside;
         }
         let mut outside = outside;
-        let mut gi = g(inside) - tt;
+        let mut gi = gbest - tt;
         go -= tt;
         let mut side = 0i8;
         for it in 0..100 {
