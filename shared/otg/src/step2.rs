@@ -147,8 +147,6 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
         }
         inside
     };
-    let lo = edge(vbest, lo0);
-    let hi = edge(vbest, hi0);
     // Illinois (modified regula falsi) on a sign change of the residual,
     // which is continuous where it is defined.
     let bracket = |x0: f64, f0: f64, x1: f64, f1: f64| -> Option<Profile> {
@@ -190,15 +188,44 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
         }
         None
     };
-    // Usually the residual changes sign over the whole window: try that
-    // first, then scan the window for sign changes.
-    let ends = (cruise(pb, tt, lo).map(|r| r.0), cruise(pb, tt, hi).map(|r| r.0));
-    if let (Some(f0), Some(f1)) = ends {
-        if hi > lo && ((f0 <= 0.0) != (f1 <= 0.0) || f1 == 0.0) {
-            if let Some(pr) = bracket(lo, f0, hi, f1) {
-                return Some(pr);
+    // Usually the residual changes sign between the window point and the
+    // edge it points to (it mostly grows with the cruise velocity): try that
+    // edge first, then the other, then scan the whole window.
+    let fbest = cruise(pb, tt, vbest).map(|r| r.0);
+    let (mut lo, mut hi) = (f64::NAN, f64::NAN);
+    let mut ends = (None, None);
+    if let Some(fv) = fbest {
+        for low_side in if fv > 0.0 { [true, false] } else { [false, true] } {
+            if low_side {
+                lo = edge(vbest, lo0);
+                ends.0 = cruise(pb, tt, lo).map(|r| r.0);
+                if let Some(f0) = ends.0 {
+                    if lo < vbest && ((f0 <= 0.0) != (fv <= 0.0) || fv == 0.0) {
+                        if let Some(pr) = bracket(lo, f0, vbest, fv) {
+                            return Some(pr);
+                        }
+                    }
+                }
+            } else {
+                hi = edge(vbest, hi0);
+                ends.1 = cruise(pb, tt, hi).map(|r| r.0);
+                if let Some(f1) = ends.1 {
+                    if vbest < hi && ((fv <= 0.0) != (f1 <= 0.0) || f1 == 0.0) {
+                        if let Some(pr) = bracket(vbest, fv, hi, f1) {
+                            return Some(pr);
+                        }
+                    }
+                }
             }
         }
+    }
+    if lo.is_nan() {
+        lo = edge(vbest, lo0);
+        ends.0 = cruise(pb, tt, lo).map(|r| r.0);
+    }
+    if hi.is_nan() {
+        hi = edge(vbest, hi0);
+        ends.1 = cruise(pb, tt, hi).map(|r| r.0);
     }
     let mut prev: Option<(f64, f64)> = None;
     for i in 0..=K {
