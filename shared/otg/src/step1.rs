@@ -228,13 +228,7 @@ impl Problem {
         }
         p[3 * s] += -self.pf;
         let mut roots = [0.0; MAX_ROOTS];
-        // Most ACC0 / ACC1 quartics have no root in their (narrowed) window:
-        // a cheap Bernstein-bound proof skips the root isolation.
-        let nr = if s == 0 && lo.is_finite() && crate::poly::excluded(&p, lo, hi) {
-            0
-        } else {
-            real_roots(&p, lo, hi, &mut roots)
-        };
+        let nr = real_roots(&p, lo, hi, &mut roots);
         let mut tv = [0.0; 5];
         for &x in &roots[..nr] {
             let sc = if s == 1 { x.powi(-1) } else { 1.0 };
