@@ -1,0 +1,401 @@
+//! Accuracy study as a library: seeded training / held-out runs of each named scene
+//! (perturbed initial states), fit every method on the training runs, replay the held-out
+//! observation streams through a [`DebrisPredictor`] of each method, and compare forecasts
+//! with the true states at fixed horizons.
+//!
+//! Protocol (identical for all methods):
+//! * a run = the named scene with every object's position, velocity, attitude and body rate
+//!   perturbed by a seeded draw (events kept), simulated with [`DebrisWorld`] at `sim_dt`,
+//!   observed by [`Sensor`] (noise, dropout, latency), observations in arrival order;
+//! * training set: the filtered state of every track on the model grid (`t = k·dt`, the
+//!   same filter the predictor uses), after `warmup`, in contiguous segments (a dropped grid
+//!   sample ends a segment); the true state is kept for the error bounds;
+//! * evaluation: every `eval_every` seconds of arrival time after `warmup`, forecast all
+//!   tracks; at each horizon `h` compare the state at `t0 + h` (`t0` = the track's last
+//!   observation time) with the truth: position error ‖p̂ − p‖ and attitude error (rotation
+//!   angle between q̂ and q). Rows report the median over all (instant, track) pairs.
+
+use crate::filter::quat_angle;
+use crate::models::{FitConfig, Method, Models, Segment, TrainingSet};
+use crate::predictor::{DebrisPredictor, ForecastBuffer, PredictorConfig};
+use dkrrt_debris::{
+    DebrisWorld, ObsBuffer, Observation, Scene, SceneError, Sensor, SensorConfig, SensorError,
+};
+use dkrrt_koopman::debris_state::N;
+use dkrrt_koopman::FitError;
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use std::collections::HashMap;
+
+/// Study error.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// Scene loading / validation.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Sensor configuration.
+    #[error(transparent)]
+    Sensor(#[from] SensorError),
+    /// Model fit.
+    #[error("fit of {method} on {scene}: {source}")]
+    Fit {
+        /// Scene.
+        scene: String,
+        /// Method name.
+        method: &'static str,
+        /// Cause.
+        source: FitError,
+    },
+}
+
+/// One row of the study table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StudyRow {
+    /// Scene name.
+    pub scene: String,
+    /// Method name ([`Method::name`]).
+    pub method: String,
+    /// Horizon [s].
+    pub horizon_s: f64,
+    /// Median position error [m].
+    pub pos_err_m: f64,
+    /// Median attitude error [rad].
+    pub att_err_rad: f64,
+    /// Number of (instant, track) samples.
+    pub n: usize,
+}
+
+/// Size and protocol of the study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyConfig {
+    /// Scenes (names of [`Scene::named`]).
+    pub scenes: Vec<String>,
+    /// Methods.
+    pub methods: Vec<Method>,
+    /// Training runs per scene.
+    pub train_runs: usize,
+    /// Held-out runs per scene.
+    pub test_runs: usize,
+    /// Simulated duration of every run [s].
+    pub duration: f64,
+    /// Ignore the first seconds (filter convergence) [s].
+    pub warmup: f64,
+    /// Simulation step [s].
+    pub sim_dt: f64,
+    /// Forecast instants every … [s] (held-out runs).
+    pub eval_every: f64,
+    /// Horizons [s] (multiples of the model dt, ≤ horizon · dt).
+    pub horizons: Vec<f64>,
+    /// Sensor model.
+    pub sensor: SensorConfig,
+    /// Fits.
+    pub fit: FitConfig,
+    /// Online predictor.
+    pub predictor: PredictorConfig,
+    /// Scale of the initial-state perturbation of the runs (0 = the named scene as is).
+    pub perturbation: f64,
+    /// Master seed (training seeds `seed + i`, held-out seeds `seed + 1000 + i`).
+    pub seed: u64,
+}
+
+impl StudyConfig {
+    /// Study of `train_runs` / `test_runs` runs of `duration` seconds per scene.
+    pub fn sized(train_runs: usize, test_runs: usize, duration: f64) -> Self {
+        StudyConfig {
+            scenes: dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect(),
+            methods: Method::ALL.to_vec(),
+            train_runs,
+            test_runs,
+            duration,
+            warmup: 1.0,
+            sim_dt: 0.01,
+            eval_every: 0.5,
+            horizons: vec![0.5, 1.0, 2.0, 4.0],
+            sensor: SensorConfig::default(),
+            fit: FitConfig::default(),
+            predictor: PredictorConfig::default(),
+            perturbation: 1.0,
+            seed: 7,
+        }
+    }
+    /// Small version for tests (a few seconds in the dev profile).
+    pub fn small() -> Self {
+        Self::sized(2, 1, 12.0)
+    }
+    /// Medium version (README table).
+    pub fn medium() -> Self {
+        Self::sized(4, 3, 25.0)
+    }
+    /// Full version (CLI).
+    pub fn full() -> Self {
+        Self::sized(10, 10, 40.0)
+    }
+}
+
+/// True states of one run, one frame per simulation step.
+#[derive(Debug, Clone, Default)]
+pub struct Truth {
+    /// Simulation step [s].
+    pub sim_dt: f64,
+    /// Frame `k` (time `k·sim_dt`): `(id, 13-state)` of every object.
+    pub frames: Vec<Vec<(u32, [f64; N])>>,
+}
+
+impl Truth {
+    /// True state of `id` at time `t` (nearest frame; `None` outside the run or if absent).
+    pub fn at(&self, id: u32, t: f64) -> Option<[f64; N]> {
+        let k = (t / self.sim_dt).round();
+        if k < 0.0 || (k * self.sim_dt - t).abs() > 0.25 * self.sim_dt {
+            return None;
+        }
+        self.frames.get(k as usize)?.iter().find(|(i, _)| *i == id).map(|(_, x)| *x)
+    }
+}
+
+/// One simulated, observed run.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// Observations in arrival order.
+    pub obs: Vec<Observation>,
+    /// True states.
+    pub truth: Truth,
+    /// Orbital mean motion of the scene [rad/s].
+    pub mean_motion: f64,
+}
+
+/// The named scene with seeded perturbations of every object's initial state: position
+/// ±0.5 m per axis, velocity ×(1 ± 0.3) ± 1 cm/s, body rate ×(1 ± 0.3) ± 0.1 rad/s, uniformly
+/// random initial attitude (all scaled by `scale`; `scale = 0` leaves the scene unchanged).
+pub fn perturbed_scene(name: &str, seed: u64, scale: f64) -> Result<Scene, SceneError> {
+    let mut scene = Scene::named(name)?;
+    if scale == 0.0 {
+        return Ok(scene);
+    }
+    let mut rng = SmallRng::seed_from_u64(seed ^ 0x5eed_5eed);
+    let mut u = |a: f64| scale * a * (2.0 * rng.random::<f64>() - 1.0);
+    for d in scene.debris.iter_mut() {
+        for i in 0..3 {
+            d.p[i] += u(0.5);
+            d.v[i] = d.v[i] * (1.0 + u(0.3)) + u(0.01);
+            d.w[i] = d.w[i] * (1.0 + u(0.3)) + u(0.1);
+        }
+        let axis = Vector3::new(u(1.0), u(1.0), u(1.0));
+        let q0 = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(d.q[0], d.q[1], d.q[2], d.q[3]));
+        let q = UnitQuaternion::from_scaled_axis(axis * std::f64::consts::PI) * q0;
+        d.q = [q.w, q.i, q.j, q.k];
+    }
+    scene.seed = seed;
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn state13(d: &dkrrt_debris::Debris) -> [f64; N] {
+    let s = &d.state;
+    let q = s.q.quaternion();
+    [s.p.x, s.p.y, s.p.z, s.v.x, s.v.y, s.v.z, q.w, q.i, q.j, q.k, s.w.x, s.w.y, s.w.z]
+}
+
+/// Simulate `scene` for `duration` seconds and record observations and truth.
+pub fn record(
+    scene: &Scene,
+    sensor_cfg: SensorConfig,
+    duration: f64,
+    sim_dt: f64,
+    seed: u64,
+) -> Result<Recording, EvalError> {
+    let mut world = DebrisWorld::new(scene)?;
+    let mut sensor = Sensor::new(sensor_cfg, seed)?;
+    let mut buf = ObsBuffer::new();
+    let steps = (duration / sim_dt).round() as usize;
+    let mut rec = Recording {
+        truth: Truth { sim_dt, frames: Vec::with_capacity(steps + 1) },
+        mean_motion: world.orbit().mean_motion(),
+        obs: Vec::new(),
+    };
+    for k in 0..=steps {
+        if k > 0 {
+            world.step(sim_dt);
+        }
+        rec.truth.frames.push(world.debris().iter().map(|d| (d.id, state13(d))).collect());
+        buf.clear();
+        sensor.poll(world.time(), world.debris(), &mut buf);
+        rec.obs.extend_from_slice(buf.as_slice());
+    }
+    Ok(rec)
+}
+
+/// Filtered states on the model grid (see the module doc) from recordings.
+pub fn training_set(
+    recs: &[Recording],
+    dt: f64,
+    horizon: usize,
+    warmup: f64,
+    pcfg: &PredictorConfig,
+) -> TrainingSet {
+    let mut ts = TrainingSet { dt, horizon, segments: Vec::new() };
+    for rec in recs {
+        let models = Models::constant_velocity(dt, horizon, rec.mean_motion, 0.0, 0.0);
+        let mut pred = DebrisPredictor::new(models, *pcfg);
+        // Open segment per id: (grid index of the last estimate, segment).
+        let mut open: HashMap<u32, (i64, Segment)> = HashMap::new();
+        let mut closed = Vec::new();
+        for o in &rec.obs {
+            pred.observe(o);
+            let Some(tr) = pred.track(o.id) else { continue };
+            if tr.t != o.t || o.t < warmup || tr.n_obs < 10 {
+                continue;
+            }
+            let g = (o.t / dt).round();
+            if (g * dt - o.t).abs() > 1e-6 {
+                continue;
+            }
+            let g = g as i64;
+            let e = open
+                .entry(o.id)
+                .or_insert_with(|| (g - 1, Segment { id: o.id, t0: o.t, ..Default::default() }));
+            if e.0 != g - 1 {
+                let old = std::mem::replace(&mut e.1, Segment { id: o.id, t0: o.t, ..Default::default() });
+                closed.push(old);
+            }
+            e.0 = g;
+            e.1.est.push(tr.state);
+        }
+        closed.extend(open.into_values().map(|(_, s)| s));
+        for mut s in closed {
+            if s.est.len() < 2 {
+                continue;
+            }
+            s.truth = (0..s.est.len() + horizon)
+                .map(|k| rec.truth.at(s.id, s.t0 + k as f64 * dt).unwrap_or([f64::NAN; N]))
+                .collect();
+            ts.segments.push(s);
+        }
+    }
+    ts.segments.sort_by(|a, b| (a.id, a.t0).partial_cmp(&(b.id, b.t0)).unwrap());
+    ts
+}
+
+/// Per-horizon error samples of one method on one recording.
+#[derive(Debug, Clone, Default)]
+pub struct Errors {
+    /// `pos[j]`: position errors at `horizons[j]` [m].
+    pub pos: Vec<Vec<f64>>,
+    /// `att[j]`: attitude errors at `horizons[j]` [rad].
+    pub att: Vec<Vec<f64>>,
+}
+
+/// Replay a held-out recording through a predictor and collect forecast errors at the
+/// horizons (seconds; rounded to model steps).
+pub fn evaluate(
+    pred: &mut DebrisPredictor,
+    rec: &Recording,
+    horizons: &[f64],
+    warmup: f64,
+    eval_every: f64,
+    out: &mut Errors,
+) {
+    let dt = pred.models().dt;
+    let mut buf = ForecastBuffer::for_predictor(pred);
+    out.pos.resize(horizons.len(), Vec::new());
+    out.att.resize(horizons.len(), Vec::new());
+    let mut next_eval = warmup;
+    for (i, o) in rec.obs.iter().enumerate() {
+        pred.observe(o);
+        // Forecast once all records available at this arrival time are in.
+        let batch_done = rec.obs.get(i + 1).is_none_or(|n| n.t_avail > o.t_avail);
+        if !(batch_done && o.t_avail >= next_eval) {
+            continue;
+        }
+        next_eval += eval_every;
+        pred.forecast(&mut buf);
+        for j in 0..buf.len() {
+            for (hj, &h) in horizons.iter().enumerate() {
+                let k = (h / dt).round() as usize;
+                if k == 0 || k > buf.horizon() {
+                    continue;
+                }
+                let Some(truth) = rec.truth.at(buf.id(j), buf.t0(j) + k as f64 * dt) else { continue };
+                let x = buf.state(j, k);
+                let dp = (0..3).map(|i| (x[i] - truth[i]).powi(2)).sum::<f64>().sqrt();
+                out.pos[hj].push(dp);
+                out.att[hj].push(quat_angle(&x[6..10], &truth[6..10]));
+            }
+        }
+    }
+}
+
+/// Median (NaN for an empty set; NaN samples sort last).
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Run the study. Rows ordered by scene, method, horizon.
+pub fn run_study(cfg: &StudyConfig) -> Result<Vec<StudyRow>, EvalError> {
+    let mut rows = Vec::new();
+    for (si, scene) in cfg.scenes.iter().enumerate() {
+        let base = cfg.seed + 10_000 * si as u64;
+        let mut train = Vec::new();
+        for r in 0..cfg.train_runs {
+            let sc = perturbed_scene(scene, base + r as u64, cfg.perturbation)?;
+            train.push(record(&sc, cfg.sensor, cfg.duration, cfg.sim_dt, base + r as u64)?);
+        }
+        let mut test = Vec::new();
+        for r in 0..cfg.test_runs {
+            let s = base + 1000 + r as u64;
+            let sc = perturbed_scene(scene, s, cfg.perturbation)?;
+            test.push(record(&sc, cfg.sensor, cfg.duration, cfg.sim_dt, s)?);
+        }
+        let mut fit = cfg.fit;
+        fit.frame_rate = train.first().map_or(fit.frame_rate, |r| r.mean_motion);
+        let ts = training_set(&train, fit.dt, fit.horizon, cfg.warmup, &cfg.predictor);
+        for &method in &cfg.methods {
+            let models = Models::fit(method, &ts, &fit).map_err(|source| EvalError::Fit {
+                scene: scene.clone(),
+                method: method.name(),
+                source,
+            })?;
+            let mut errs = Errors::default();
+            for rec in &test {
+                let mut pred = DebrisPredictor::new(models.clone(), cfg.predictor);
+                evaluate(&mut pred, rec, &cfg.horizons, cfg.warmup, cfg.eval_every, &mut errs);
+            }
+            for (hj, &h) in cfg.horizons.iter().enumerate() {
+                let n = errs.pos.get(hj).map_or(0, |v| v.len());
+                rows.push(StudyRow {
+                    scene: scene.clone(),
+                    method: method.name().to_string(),
+                    horizon_s: h,
+                    pos_err_m: errs.pos.get_mut(hj).map_or(f64::NAN, |v| median(v)),
+                    att_err_rad: errs.att.get_mut(hj).map_or(f64::NAN, |v| median(v)),
+                    n,
+                });
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Markdown table of study rows.
+pub fn markdown_table(rows: &[StudyRow]) -> String {
+    let mut s =
+        String::from("| scene | method | horizon [s] | median pos err [m] | median att err [rad] | n |\n");
+    s.push_str("|---|---|---|---|---|---|\n");
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.4} | {:.4} | {} |\n",
+            r.scene, r.method, r.horizon_s, r.pos_err_m, r.att_err_rad, r.n
+        ));
+    }
+    s
+}

@@ -1,0 +1,30 @@
+//! dkrrt-predictor: the online debris predictor of DK-RRT.
+//!
+//! * [`DebrisPredictor`]: track table for up to [`MAX_TRACKS`] objects keyed by debris id,
+//!   observation gating, per-track pose filter ([`filter`]), per-track Koopman models
+//!   (translation + attitude) refined online by RLS, event detection on the one-step
+//!   residual with per-horizon [`dkrrt_koopman::ErrorBound`]s grown after events, and
+//!   allocation-free forecasts into a caller-owned [`ForecastBuffer`].
+//! * [`models`]: the [`Method`]s of the study, their fits ([`Models::fit`]) and the roll-out
+//!   [`models::Engine`].
+//! * [`eval`]: the accuracy study (training / held-out runs of the named scenes, median
+//!   position / attitude errors at fixed horizons).
+//!
+//! Memory model: [`DebrisPredictor::new`] allocates every slot (models, RLS covariances,
+//! history); [`DebrisPredictor::observe`] and [`DebrisPredictor::forecast`] never allocate.
+
+// Index loops mirror the formulas.
+#![allow(clippy::needless_range_loop)]
+
+pub mod eval;
+pub mod filter;
+pub mod models;
+pub mod predictor;
+
+pub use eval::{run_study, StudyConfig, StudyRow};
+pub use filter::{FilterConfig, TrackFilter};
+pub use models::{AttitudeLifting, FitConfig, Method, Models, Segment, TrainingSet};
+pub use predictor::{
+    DebrisPredictor, ForecastBuffer, GateStats, ObserveOutcome, PredictorConfig, RejectReason, TrackInfo,
+    MAX_TRACKS,
+};

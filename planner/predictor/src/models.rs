@@ -1,0 +1,444 @@
+//! Prediction methods, their fitted models, and the allocation-free roll-out engine.
+//!
+//! Every method predicts the 13-state of [`dkrrt_koopman::debris_state`]. Koopman methods use
+//! two decoupled models (the koopman crate's design): translation on `[p, v, 1]` (p = 7) and
+//! attitude on `(q, ω)` with either the sparse bilinear/quadratic polynomial dictionary
+//! (`attitude_dictionary`, p = 26) or a Gaussian RBF dictionary; both rolled out in relift mode
+//! with the quaternion renormalised every step.
+
+use crate::filter::quat_angle;
+use dkrrt_koopman::debris_state::{self, attitude_dictionary, nominal_rhs, N};
+use dkrrt_koopman::{
+    fit_dual, fit_edmd, fit_generator, ConstantVelocity, DualVariant, ErrorBound, FitError, Forecaster,
+    KoopmanModel, Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Rollout, Snapshots, StateConstraint,
+    MAX_HORIZON,
+};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// Prediction method (for the accuracy study and for selecting the online predictor).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum Method {
+    /// Straight line + constant body rate from the filtered state (baseline).
+    ConstantVelocity,
+    /// EDMD, polynomial dictionaries (translation `[x,1]`, attitude sparse degree 2), fixed.
+    EdmdPoly,
+    /// EDMD, translation `[x,1]`, attitude Gaussian RBF dictionary, fixed.
+    EdmdRbf,
+    /// [`Method::EdmdPoly`] refined online per track by RLS, bounds grown after events.
+    KoopmanOnline,
+    /// The paper's dual-data scheme (nominal CW + attitude-kinematics generator, correction
+    /// `H` learned from trajectories with ridge), refined online per track by RLS.
+    DualData,
+}
+
+impl Method {
+    /// All methods of the study.
+    pub const ALL: [Method; 5] = [
+        Method::ConstantVelocity,
+        Method::EdmdPoly,
+        Method::EdmdRbf,
+        Method::KoopmanOnline,
+        Method::DualData,
+    ];
+    /// Short name (study tables, CLI).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::ConstantVelocity => "constant-velocity",
+            Method::EdmdPoly => "edmd-poly",
+            Method::EdmdRbf => "edmd-rbf",
+            Method::KoopmanOnline => "koopman-online",
+            Method::DualData => "dual-data",
+        }
+    }
+    /// Parse a [`Method::name`].
+    pub fn from_name(s: &str) -> Option<Method> {
+        Method::ALL.iter().copied().find(|m| m.name() == s)
+    }
+    /// Whether the models are refined online by RLS.
+    pub fn online(&self) -> bool {
+        matches!(self, Method::KoopmanOnline | Method::DualData)
+    }
+    /// Whether the method uses Koopman models (everything but the baseline).
+    pub fn koopman(&self) -> bool {
+        !matches!(self, Method::ConstantVelocity)
+    }
+}
+
+/// Attitude dictionary (closed set, so the lifting is `Clone` and needs no trait object).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AttitudeLifting {
+    /// Polynomial (e.g. [`attitude_dictionary`]).
+    Poly(Polynomial),
+    /// Radial basis functions.
+    Rbf(Rbf),
+}
+
+impl Lifting for AttitudeLifting {
+    fn state_dim(&self) -> usize {
+        match self {
+            AttitudeLifting::Poly(l) => l.state_dim(),
+            AttitudeLifting::Rbf(l) => l.state_dim(),
+        }
+    }
+    fn dim(&self) -> usize {
+        match self {
+            AttitudeLifting::Poly(l) => l.dim(),
+            AttitudeLifting::Rbf(l) => l.dim(),
+        }
+    }
+    #[inline]
+    fn lift(&self, x: &[f64], out: &mut [f64]) {
+        match self {
+            AttitudeLifting::Poly(l) => l.lift(x, out),
+            AttitudeLifting::Rbf(l) => l.lift(x, out),
+        }
+    }
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        match self {
+            AttitudeLifting::Poly(l) => l.lift_derivative(x, xdot, out),
+            AttitudeLifting::Rbf(l) => l.lift_derivative(x, xdot, out),
+        }
+    }
+}
+
+/// Training data on the model time grid: segments of filtered state estimates of one object
+/// at consecutive grid times `t0 + k·dt`, plus the true state over the same grid extended by
+/// the horizon (NaN where unknown) for the error bounds.
+#[derive(Debug, Clone, Default)]
+pub struct TrainingSet {
+    /// Grid step [s].
+    pub dt: f64,
+    /// Horizon `H` (steps) covered by `truth` beyond the end of `est`.
+    pub horizon: usize,
+    /// Segments.
+    pub segments: Vec<Segment>,
+}
+
+/// One contiguous run of estimates of one object.
+#[derive(Debug, Clone, Default)]
+pub struct Segment {
+    /// Debris id.
+    pub id: u32,
+    /// Time of `est[0]` [s].
+    pub t0: f64,
+    /// Filtered estimates at `t0 + k dt`.
+    pub est: Vec<[f64; N]>,
+    /// True states at `t0 + k dt`, `k < est.len() + horizon` (NaN rows where unknown).
+    pub truth: Vec<[f64; N]>,
+}
+
+impl TrainingSet {
+    /// Number of consecutive estimate pairs.
+    pub fn n_pairs(&self) -> usize {
+        self.segments.iter().map(|s| s.est.len().saturating_sub(1)).sum()
+    }
+}
+
+/// Fitting parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FitConfig {
+    /// Model step [s].
+    pub dt: f64,
+    /// Forecast horizon (steps, ≤ 128).
+    pub horizon: usize,
+    /// LVLH frame rotation rate (mean motion) [rad/s].
+    pub frame_rate: f64,
+    /// Relative SVD truncation of the EDMD fits.
+    pub rel_tol: f64,
+    /// RBF: number of centres (drawn from the training states).
+    pub rbf_centres: usize,
+    /// RBF: Gaussian width in units of the per-coordinate data spread.
+    pub rbf_sigma: f64,
+    /// Dual-data: number of collocation points for the nominal generator.
+    pub collocation: usize,
+    /// Dual-data: ridge of the correction, per training pair (λ = `dual_ridge` · N).
+    pub dual_ridge: f64,
+    /// Error bound: quantile of the validation errors.
+    pub bound_quantile: f64,
+    /// Error bound: margin factor.
+    pub bound_margin: f64,
+    /// Error bound: start stride (grid points) of the validation forecasts.
+    pub bound_stride: usize,
+    /// Seed (RBF centres, collocation points).
+    pub seed: u64,
+}
+
+impl Default for FitConfig {
+    fn default() -> Self {
+        FitConfig {
+            dt: 0.1,
+            horizon: 40,
+            frame_rate: 1.1314e-3,
+            rel_tol: 1e-10,
+            rbf_centres: 24,
+            rbf_sigma: 1.5,
+            collocation: 2000,
+            dual_ridge: 1e-4,
+            bound_quantile: 0.95,
+            bound_margin: 1.2,
+            bound_stride: 5,
+            seed: 1,
+        }
+    }
+}
+
+/// Fitted models of one method plus its per-horizon error bounds.
+#[derive(Debug, Clone)]
+pub struct Models {
+    /// Method.
+    pub method: Method,
+    /// Model step [s].
+    pub dt: f64,
+    /// Forecast horizon (steps).
+    pub horizon: usize,
+    /// LVLH frame rotation rate [rad/s].
+    pub frame_rate: f64,
+    /// Translational dictionary `[p, v, 1]`.
+    pub trans_lift: Polynomial,
+    /// Attitude dictionary.
+    pub att_lift: AttitudeLifting,
+    /// Translational model (n = 6).
+    pub trans: KoopmanModel,
+    /// Attitude model (n = 7).
+    pub att: KoopmanModel,
+    /// Position error bound [m] per step.
+    pub pos_bound: ErrorBound,
+    /// Attitude error bound [rad] per step.
+    pub att_bound: ErrorBound,
+}
+
+impl Models {
+    /// Constant-velocity baseline with constant error bounds (no data needed).
+    pub fn constant_velocity(
+        dt: f64,
+        horizon: usize,
+        frame_rate: f64,
+        pos_radius: f64,
+        att_radius: f64,
+    ) -> Self {
+        let trans_lift = Polynomial::new(6, 1);
+        let att_lift = AttitudeLifting::Poly(attitude_dictionary());
+        Models {
+            method: Method::ConstantVelocity,
+            dt,
+            horizon,
+            frame_rate,
+            trans: KoopmanModel::zeros(6, trans_lift.dim(), 0, dt),
+            att: KoopmanModel::zeros(7, att_lift.dim(), 0, dt),
+            trans_lift,
+            att_lift,
+            pos_bound: ErrorBound::constant(horizon, dt, pos_radius),
+            att_bound: ErrorBound::constant(horizon, dt, att_radius),
+        }
+    }
+
+    /// Fit `method` on `data` (grid step must equal `cfg.dt`). Error bounds from validation
+    /// forecasts on the same data against the true states.
+    pub fn fit(method: Method, data: &TrainingSet, cfg: &FitConfig) -> Result<Models, FitError> {
+        assert!((1..=MAX_HORIZON).contains(&cfg.horizon), "horizon must be in 1..=128");
+        if (data.dt - cfg.dt).abs() > 1e-9 {
+            return Err(FitError::Dim(format!("training grid dt {} != model dt {}", data.dt, cfg.dt)));
+        }
+        let mut st = Snapshots::new(6, 0);
+        let mut sa = Snapshots::new(7, 0);
+        for seg in &data.segments {
+            for w in seg.est.windows(2) {
+                st.push(&w[0][debris_state::TRANS], &w[1][debris_state::TRANS], &[]);
+                let mut y = [0.0; 7];
+                y.copy_from_slice(&w[1][debris_state::ROT]);
+                debris_state::align_quaternion(&mut y[0..4], &w[0][debris_state::QUAT]);
+                sa.push(&w[0][debris_state::ROT], &y, &[]);
+            }
+        }
+        if st.len() < 30 {
+            return Err(FitError::NotEnoughData(format!("{} training pairs (need ≥ 30)", st.len())));
+        }
+        let mut m = Models::constant_velocity(cfg.dt, cfg.horizon, cfg.frame_rate, 0.0, 0.0);
+        m.method = method;
+        let opts = LstsqOptions { rel_tol: cfg.rel_tol, ..Default::default() };
+        let mut rng = SmallRng::seed_from_u64(cfg.seed);
+        match method {
+            Method::ConstantVelocity => {}
+            Method::EdmdPoly | Method::KoopmanOnline => {
+                m.trans = fit_edmd(&m.trans_lift, &st, cfg.dt, &opts)?.0;
+                m.att = fit_edmd(&m.att_lift, &sa, cfg.dt, &opts)?.0;
+            }
+            Method::EdmdRbf => {
+                m.trans = fit_edmd(&m.trans_lift, &st, cfg.dt, &opts)?.0;
+                // Per-coordinate spread of the attitude states; centres drawn from the data.
+                let nn = sa.len();
+                let mut mean = [0.0; 7];
+                let mut var = [0.0; 7];
+                for k in 0..nn {
+                    for i in 0..7 {
+                        mean[i] += sa.x[k * 7 + i] / nn as f64;
+                    }
+                }
+                for k in 0..nn {
+                    for i in 0..7 {
+                        var[i] += (sa.x[k * 7 + i] - mean[i]).powi(2) / nn as f64;
+                    }
+                }
+                let scale: Vec<f64> = var.iter().map(|v| v.sqrt().max(1e-3)).collect();
+                let mut centres = Vec::with_capacity(cfg.rbf_centres * 7);
+                for _ in 0..cfg.rbf_centres {
+                    let k = rng.random_range(0..nn);
+                    centres.extend_from_slice(&sa.x[k * 7..(k + 1) * 7]);
+                }
+                let rbf = Rbf::new(7, centres, RbfKind::Gaussian { sigma: cfg.rbf_sigma }).with_scale(&scale);
+                m.att_lift = AttitudeLifting::Rbf(rbf);
+                m.att = fit_edmd(&m.att_lift, &sa, cfg.dt, &opts)?.0;
+            }
+            Method::DualData => {
+                let n = cfg.frame_rate;
+                let nn = st.len();
+                let ridge =
+                    LstsqOptions { rel_tol: cfg.rel_tol, ridge: cfg.dual_ridge * nn as f64, max_rank: None };
+                // Collocation points: training states with a small random spread.
+                let nc = cfg.collocation.max(50);
+                let (mut xt, mut xa) = (Vec::with_capacity(nc * 6), Vec::with_capacity(nc * 7));
+                for _ in 0..nc {
+                    let k = rng.random_range(0..nn);
+                    for i in 0..6 {
+                        xt.push(st.x[k * 6 + i] + 0.1 * (rng.random::<f64>() - 0.5));
+                    }
+                    let mut a = [0.0; 7];
+                    for i in 0..7 {
+                        a[i] = sa.x[k * 7 + i] + 0.1 * (rng.random::<f64>() - 0.5);
+                    }
+                    let qn = a[..4].iter().map(|v| v * v).sum::<f64>().sqrt();
+                    a[..4].iter_mut().for_each(|v| *v /= qn);
+                    xa.extend_from_slice(&a);
+                }
+                let gt = fit_generator(&m.trans_lift, &xt, &[], 0, |x, _, dx| nominal_rhs(n, x, dx), &opts)?;
+                let ga = fit_generator(&m.att_lift, &xa, &[], 0, |x, _, dx| nominal_rhs(n, x, dx), &opts)?;
+                m.trans = fit_dual(&m.trans_lift, &gt, &st, cfg.dt, DualVariant::Corrected, &ridge)?.model;
+                m.att = fit_dual(&m.att_lift, &ga, &sa, cfg.dt, DualVariant::Corrected, &ridge)?.model;
+            }
+        }
+        m.fit_bounds(data, cfg);
+        Ok(m)
+    }
+
+    /// (Re)compute the per-horizon bounds from validation forecasts on `data` vs truth.
+    pub fn fit_bounds(&mut self, data: &TrainingSet, cfg: &FitConfig) {
+        let h = self.horizon;
+        let mut eng = Engine::new(self);
+        let mut out = vec![0.0; h * N];
+        let (mut ep, mut ea) = (Vec::new(), Vec::new());
+        for seg in &data.segments {
+            let mut s = 0;
+            while s < seg.est.len() {
+                if seg.truth.len() >= s + h + 1 && seg.truth[s + 1..=s + h].iter().all(|r| r[0].is_finite()) {
+                    eng.run(self, &self.trans, &self.att, &seg.est[s], h, &mut out);
+                    for k in 0..h {
+                        let (xh, xt) = (&out[k * N..(k + 1) * N], &seg.truth[s + k + 1]);
+                        let dp = (0..3).map(|i| (xh[i] - xt[i]).powi(2)).sum::<f64>().sqrt();
+                        ep.push(dp);
+                        ea.push(quat_angle(&xh[6..10], &xt[6..10]));
+                    }
+                }
+                s += cfg.bound_stride.max(1);
+            }
+        }
+        let sane = |v: &mut Vec<f64>| v.iter_mut().for_each(|e| *e = if e.is_finite() { *e } else { 1e3 });
+        sane(&mut ep);
+        sane(&mut ea);
+        if !ep.is_empty() {
+            self.pos_bound =
+                ErrorBound::from_residuals(&ep, h, self.dt, cfg.bound_quantile, cfg.bound_margin);
+            self.att_bound =
+                ErrorBound::from_residuals(&ea, h, self.dt, cfg.bound_quantile, cfg.bound_margin);
+        }
+    }
+}
+
+/// Allocation-free roll-out of a 13-state with one method (scratch preallocated).
+///
+/// Trust region: a Koopman roll-out started outside the training distribution (e.g. a
+/// noisy rate estimate of a fresh track) can diverge polynomially. From the first step whose
+/// state is non-finite or implies a speed above `max_speed` or a spin above `max_spin`, the
+/// remaining steps are replaced by a constant-velocity continuation of the last good state
+/// (counted in [`Engine::fallbacks`]).
+#[derive(Debug, Clone)]
+pub struct Engine {
+    ft: Forecaster,
+    fa: Forecaster,
+    tb: Vec<f64>,
+    ab: Vec<f64>,
+    /// Trust region: maximum speed [m/s].
+    pub max_speed: f64,
+    /// Trust region: maximum spin [rad/s].
+    pub max_spin: f64,
+    /// Roll-outs that left the trust region and were continued by constant velocity.
+    pub fallbacks: u64,
+}
+
+impl Engine {
+    /// Scratch for the models' sizes and horizon (trust region 5 m/s, 15 rad/s).
+    pub fn new(models: &Models) -> Self {
+        let h = models.horizon;
+        Engine {
+            ft: Forecaster::new(models.trans.p),
+            fa: Forecaster::new(models.att.p).with_constraint(StateConstraint::UnitQuaternion { at: 0 }),
+            tb: vec![0.0; h * 6],
+            ab: vec![0.0; h * 7],
+            max_speed: 5.0,
+            max_spin: 15.0,
+            fallbacks: 0,
+        }
+    }
+
+    fn trusted(&self, x: &[f64]) -> bool {
+        let v2 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5];
+        let w2 = x[10] * x[10] + x[11] * x[11] + x[12] * x[12];
+        x.iter().all(|v| v.is_finite()) && v2 <= self.max_speed.powi(2) && w2 <= self.max_spin.powi(2)
+    }
+
+    /// Forecast `h ≤ models.horizon` steps of the 13-state from `x0` with the given (possibly
+    /// per-track refined) models into `out[..h*13]` (row-major, states at `dt, 2dt, …`).
+    pub fn run(
+        &mut self,
+        models: &Models,
+        trans: &KoopmanModel,
+        att: &KoopmanModel,
+        x0: &[f64],
+        h: usize,
+        out: &mut [f64],
+    ) {
+        let out = &mut out[..h * N];
+        let cv = ConstantVelocity { frame_rate: models.frame_rate };
+        if models.method == Method::ConstantVelocity {
+            cv.forecast(x0, models.dt, out);
+            return;
+        }
+        let (tb, ab) = (&mut self.tb[..h * 6], &mut self.ab[..h * 7]);
+        self.ft.forecast(trans, &models.trans_lift, &x0[debris_state::TRANS], &[], Rollout::Relift, tb);
+        self.fa.forecast(att, &models.att_lift, &x0[debris_state::ROT], &[], Rollout::Relift, ab);
+        for k in 0..h {
+            out[k * N..k * N + 6].copy_from_slice(&tb[k * 6..(k + 1) * 6]);
+            out[k * N + 6..(k + 1) * N].copy_from_slice(&ab[k * 7..(k + 1) * 7]);
+        }
+        if let Some(bad) = (0..h).find(|&k| !self.trusted(&out[k * N..(k + 1) * N])) {
+            self.fallbacks += 1;
+            let mut start = [0.0; N];
+            start.copy_from_slice(if bad == 0 { &x0[..N] } else { &out[(bad - 1) * N..bad * N] });
+            if !self.trusted(&start) {
+                // Even the start is implausible: clamp its rates to the trust region.
+                let clamp = |v: &mut [f64], lim: f64| {
+                    let n = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+                    if !n.is_finite() {
+                        v.iter_mut().for_each(|a| *a = 0.0);
+                    } else if n > lim {
+                        v.iter_mut().for_each(|a| *a *= lim / n);
+                    }
+                };
+                clamp(&mut start[3..6], self.max_speed);
+                clamp(&mut start[10..13], self.max_spin);
+            }
+            cv.forecast(&start, models.dt, &mut out[bad * N..]);
+        }
+    }
+}

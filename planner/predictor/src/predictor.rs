@@ -1,0 +1,572 @@
+//! The composite online debris predictor: track table, gating, pose filter, per-track
+//! Koopman models with RLS refinement, event detection and error bounds, forecasts into a
+//! caller-provided buffer. Allocation-free after construction.
+
+use crate::filter::{quat_angle, FilterConfig, TrackFilter};
+use crate::models::{Engine, Method, Models};
+use dkrrt_debris::Observation;
+use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, ROT, TRANS};
+use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig};
+use serde::Serialize;
+
+/// Maximum number of tracks (= debris capacity of the world).
+pub const MAX_TRACKS: usize = dkrrt_debris::MAX_DEBRIS;
+/// Length of the per-track history of filtered states used to form model-step pairs.
+pub const HISTORY: usize = 16;
+
+/// Predictor parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PredictorConfig {
+    /// Pose filter.
+    pub filter: FilterConfig,
+    /// Gate: maximum plausible speed [m/s]; a position jump implying more is rejected.
+    pub max_speed: f64,
+    /// Gate: maximum plausible spin [rad/s]; an attitude jump implying more is rejected.
+    pub max_spin: f64,
+    /// Gate: position jump allowed on top of `max_speed · Δt` (measurement noise) [m].
+    pub jump_pos_margin: f64,
+    /// Gate: rotation allowed on top of `max_spin · Δt` (measurement noise) [rad].
+    pub jump_att_margin: f64,
+    /// After this many consecutive jump rejections the track is re-initialised from the
+    /// newest observation (the object really moved, e.g. re-identification).
+    pub reinit_after_rejects: u32,
+    /// Tracks without an accepted observation for this long (measured against the newest
+    /// observation time seen) are dropped and their slots freed [s].
+    pub track_timeout: f64,
+    /// Tolerance when looking up the filtered state one model step back [s].
+    pub pair_tolerance: f64,
+    /// RLS of the translational model (state rows).
+    pub rls_trans: RlsConfig,
+    /// RLS of the attitude model (state rows).
+    pub rls_att: RlsConfig,
+    /// Event: one-step residual > `event_factor · radius(1)` + noise allowance.
+    pub event_factor: f64,
+    /// Event: position noise allowance of the one-step residual (raw observation) [m].
+    pub event_pos_noise: f64,
+    /// Event: attitude noise allowance [rad].
+    pub event_att_noise: f64,
+    /// Event: minimum time between two events of one track [s].
+    pub event_refractory: f64,
+    /// Tracks need this many accepted observations before they are forecast.
+    pub min_obs_for_forecast: u32,
+}
+
+impl Default for PredictorConfig {
+    fn default() -> Self {
+        PredictorConfig {
+            filter: FilterConfig::default(),
+            max_speed: 5.0,
+            max_spin: 15.0,
+            jump_pos_margin: 0.05,
+            jump_att_margin: 0.1,
+            reinit_after_rejects: 10,
+            track_timeout: 1.0,
+            pair_tolerance: 0.005,
+            rls_trans: RlsConfig { lambda: 0.999, p0: 1e-2, max_trace: 1e6 },
+            rls_att: RlsConfig { lambda: 0.995, p0: 1e-1, max_trace: 1e6 },
+            event_factor: 3.0,
+            event_pos_noise: 0.05,
+            event_att_noise: 0.08,
+            event_refractory: 0.5,
+            min_obs_for_forecast: 5,
+        }
+    }
+}
+
+/// Why an observation was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum RejectReason {
+    /// NaN / Inf in time, position or attitude, or a degenerate quaternion.
+    Invalid,
+    /// Timestamp not newer than the track's last accepted observation.
+    OutOfOrder,
+    /// Position jump implying a speed above `max_speed`.
+    PositionJump,
+    /// Attitude jump implying a spin above `max_spin`.
+    AttitudeJump,
+    /// New id but all [`MAX_TRACKS`] slots are in use.
+    TableFull,
+}
+
+/// Result of [`DebrisPredictor::observe`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum ObserveOutcome {
+    /// Accepted into an existing track.
+    Accepted,
+    /// A new track was created (new id, or re-initialised after repeated jumps).
+    NewTrack,
+    /// Rejected (counted in [`GateStats`]).
+    Rejected(RejectReason),
+}
+
+/// Counters of the gate and the online machinery.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub struct GateStats {
+    /// Observations accepted (including the ones that created tracks).
+    pub accepted: u64,
+    /// Rejected: NaN / Inf / degenerate quaternion.
+    pub invalid: u64,
+    /// Rejected: out of order or duplicate timestamp.
+    pub out_of_order: u64,
+    /// Rejected: impossible position jump.
+    pub pos_jump: u64,
+    /// Rejected: impossible attitude jump.
+    pub att_jump: u64,
+    /// Rejected: track table full.
+    pub table_full: u64,
+    /// Tracks created.
+    pub tracks_created: u64,
+    /// Tracks re-initialised after repeated jump rejections.
+    pub reinit: u64,
+    /// Tracks dropped after the timeout.
+    pub tracks_dropped: u64,
+    /// Detected events (one-step residual beyond the bound), position or attitude.
+    pub events: u64,
+    /// One-step model pairs processed (residual test and, for online methods, RLS).
+    pub model_pairs: u64,
+    /// Forecasts that left the trust region and were continued by constant velocity.
+    pub forecast_fallbacks: u64,
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    active: bool,
+    id: u32,
+    filter: TrackFilter,
+    n_obs: u32,
+    last_obs_p: [f64; 3],
+    last_obs_q: [f64; 4],
+    rejects: u32,
+    hist_t: [f64; HISTORY],
+    hist_x: [[f64; N]; HISTORY],
+    hist_head: usize,
+    hist_len: usize,
+    trans: KoopmanModel,
+    att: KoopmanModel,
+    rls_t: Rls,
+    rls_a: Rls,
+    pos_bound: ErrorBound,
+    att_bound: ErrorBound,
+    last_event_t: f64,
+    events: u32,
+    last_residual: [f64; 2],
+}
+
+/// Read-only view of one track.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackInfo {
+    /// Debris id.
+    pub id: u32,
+    /// Time of the estimate (last accepted observation) [s].
+    pub t: f64,
+    /// Filtered 13-state.
+    pub state: [f64; N],
+    /// Accepted observations.
+    pub n_obs: u32,
+    /// Events detected on this track.
+    pub events: u32,
+    /// Last one-step residuals `[position m, attitude rad]` (NaN before the first pair).
+    pub last_residual: [f64; 2],
+    /// Position bound 1 step and H steps ahead [m].
+    pub pos_radius: [f64; 2],
+    /// Attitude bound 1 step and H steps ahead [rad].
+    pub att_radius: [f64; 2],
+}
+
+/// Caller-owned forecast output for up to [`MAX_TRACKS`] tracks × `H` steps.
+#[derive(Debug, Clone)]
+pub struct ForecastBuffer {
+    h: usize,
+    dt: f64,
+    len: usize,
+    ids: [u32; MAX_TRACKS],
+    t0: [f64; MAX_TRACKS],
+    states: Vec<f64>,
+    pos_radius: Vec<f64>,
+    att_radius: Vec<f64>,
+}
+
+impl ForecastBuffer {
+    /// Buffer for horizons of `h` steps of `dt` (allocates once).
+    pub fn new(h: usize, dt: f64) -> Self {
+        ForecastBuffer {
+            h,
+            dt,
+            len: 0,
+            ids: [0; MAX_TRACKS],
+            t0: [0.0; MAX_TRACKS],
+            states: vec![0.0; MAX_TRACKS * h * N],
+            pos_radius: vec![0.0; MAX_TRACKS * h],
+            att_radius: vec![0.0; MAX_TRACKS * h],
+        }
+    }
+    /// Buffer matching a predictor.
+    pub fn for_predictor(p: &DebrisPredictor) -> Self {
+        Self::new(p.models.horizon, p.models.dt)
+    }
+    /// Horizon `H` (steps).
+    pub fn horizon(&self) -> usize {
+        self.h
+    }
+    /// Step [s].
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+    /// Number of forecast tracks.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    /// No tracks.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// Id of forecast `i`.
+    pub fn id(&self, i: usize) -> u32 {
+        self.ids[i]
+    }
+    /// Start time of forecast `i` (its track's last observation): step `k` is at `t0 + k·dt`.
+    pub fn t0(&self, i: usize) -> f64 {
+        self.t0[i]
+    }
+    /// Index of the forecast of debris `id`.
+    pub fn index_of(&self, id: u32) -> Option<usize> {
+        self.ids[..self.len].iter().position(|&x| x == id)
+    }
+    /// Predicted 13-state of forecast `i`, `k` steps ahead (`1 ≤ k ≤ H`).
+    pub fn state(&self, i: usize, k: usize) -> &[f64] {
+        assert!(i < self.len && (1..=self.h).contains(&k));
+        let o = (i * self.h + k - 1) * N;
+        &self.states[o..o + N]
+    }
+    /// All `H` predicted states of forecast `i` (row-major `H × 13`).
+    pub fn states(&self, i: usize) -> &[f64] {
+        &self.states[i * self.h * N..(i + 1) * self.h * N]
+    }
+    /// Position error radius of forecast `i`, `k` steps ahead [m].
+    pub fn pos_radius(&self, i: usize, k: usize) -> f64 {
+        self.pos_radius[i * self.h + k - 1]
+    }
+    /// Attitude error radius of forecast `i`, `k` steps ahead [rad].
+    pub fn att_radius(&self, i: usize, k: usize) -> f64 {
+        self.att_radius[i * self.h + k - 1]
+    }
+}
+
+/// Online debris predictor for up to [`MAX_TRACKS`] objects (association by id).
+#[derive(Debug, Clone)]
+pub struct DebrisPredictor {
+    cfg: PredictorConfig,
+    models: Models,
+    tracks: Vec<Track>,
+    stats: GateStats,
+    engine: Engine,
+    phi_t: Vec<f64>,
+    phi_a: Vec<f64>,
+    t_latest: f64,
+}
+
+fn finite(o: &Observation) -> bool {
+    o.t.is_finite() && o.p.iter().all(|v| v.is_finite()) && o.q.iter().all(|v| v.is_finite()) && {
+        let n2: f64 = o.q.iter().map(|v| v * v).sum();
+        (0.25..=4.0).contains(&n2)
+    }
+}
+
+impl DebrisPredictor {
+    /// Build with fitted models; allocates all [`MAX_TRACKS`] slots (models, RLS, history).
+    pub fn new(models: Models, cfg: PredictorConfig) -> Self {
+        let mut filter_cfg = cfg.filter;
+        filter_cfg.frame_rate = models.frame_rate;
+        let cfg = PredictorConfig { filter: filter_cfg, ..cfg };
+        let slot = Track {
+            active: false,
+            id: 0,
+            filter: TrackFilter::new(&cfg.filter, 0.0, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0]),
+            n_obs: 0,
+            last_obs_p: [0.0; 3],
+            last_obs_q: [1.0, 0.0, 0.0, 0.0],
+            rejects: 0,
+            hist_t: [f64::NAN; HISTORY],
+            hist_x: [[0.0; N]; HISTORY],
+            hist_head: 0,
+            hist_len: 0,
+            trans: models.trans.clone(),
+            att: models.att.clone(),
+            rls_t: Rls::for_model_state_rows(&models.trans, cfg.rls_trans),
+            rls_a: Rls::for_model_state_rows(&models.att, cfg.rls_att),
+            pos_bound: models.pos_bound.clone(),
+            att_bound: models.att_bound.clone(),
+            last_event_t: f64::NEG_INFINITY,
+            events: 0,
+            last_residual: [f64::NAN; 2],
+        };
+        DebrisPredictor {
+            engine: {
+                let mut e = Engine::new(&models);
+                e.max_speed = cfg.max_speed;
+                e.max_spin = cfg.max_spin;
+                e
+            },
+            phi_t: vec![0.0; models.trans.p + 8],
+            phi_a: vec![0.0; models.att.p + 8],
+            tracks: vec![slot; MAX_TRACKS],
+            models,
+            cfg,
+            stats: GateStats::default(),
+            t_latest: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Configuration.
+    pub fn config(&self) -> &PredictorConfig {
+        &self.cfg
+    }
+    /// Shared (fitted) models.
+    pub fn models(&self) -> &Models {
+        &self.models
+    }
+    /// Method.
+    pub fn method(&self) -> Method {
+        self.models.method
+    }
+    /// Gate / online counters.
+    pub fn stats(&self) -> &GateStats {
+        &self.stats
+    }
+    /// Number of active tracks.
+    pub fn n_tracks(&self) -> usize {
+        self.tracks.iter().filter(|t| t.active).count()
+    }
+    /// Slot index of the track of `id` (slots are reused after drops).
+    pub fn slot_of(&self, id: u32) -> Option<usize> {
+        self.tracks.iter().position(|t| t.active && t.id == id)
+    }
+    /// Read-only view of the track of `id`.
+    pub fn track(&self, id: u32) -> Option<TrackInfo> {
+        let t = &self.tracks[self.slot_of(id)?];
+        let h = self.models.horizon;
+        Some(TrackInfo {
+            id,
+            t: t.filter.t,
+            state: t.filter.x,
+            n_obs: t.n_obs,
+            events: t.events,
+            last_residual: t.last_residual,
+            pos_radius: [t.pos_bound.radius(1), t.pos_bound.radius(h)],
+            att_radius: [t.att_bound.radius(1), t.att_bound.radius(h)],
+        })
+    }
+
+    /// Drop tracks whose last accepted observation is older than `t_now − track_timeout`.
+    /// Returns the number dropped. Called by [`DebrisPredictor::observe`] with the newest
+    /// observation time; call it from the planner clock too if observations stop entirely.
+    pub fn prune(&mut self, t_now: f64) -> usize {
+        let mut n = 0;
+        for tr in self.tracks.iter_mut() {
+            if tr.active && t_now - tr.filter.t > self.cfg.track_timeout {
+                tr.active = false;
+                n += 1;
+            }
+        }
+        self.stats.tracks_dropped += n as u64;
+        n
+    }
+
+    fn init_track(&mut self, slot: usize, o: &Observation) {
+        let cfg = &self.cfg;
+        let m = &self.models;
+        let tr = &mut self.tracks[slot];
+        tr.active = true;
+        tr.id = o.id;
+        let mut q = o.q;
+        let nq = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        q.iter_mut().for_each(|v| *v /= nq);
+        tr.filter = TrackFilter::new(&cfg.filter, o.t, &o.p, &q);
+        tr.n_obs = 1;
+        tr.last_obs_p = o.p;
+        tr.last_obs_q = q;
+        tr.rejects = 0;
+        tr.hist_len = 0;
+        tr.hist_head = 0;
+        tr.trans.ab.copy_from_slice(&m.trans.ab);
+        tr.att.ab.copy_from_slice(&m.att.ab);
+        tr.rls_t.reset_covariance();
+        tr.rls_a.reset_covariance();
+        tr.pos_bound.clone_from(&m.pos_bound);
+        tr.att_bound.clone_from(&m.att_bound);
+        tr.last_event_t = f64::NEG_INFINITY;
+        tr.events = 0;
+        tr.last_residual = [f64::NAN; 2];
+        push_hist(tr);
+    }
+
+    /// Process one observation (any order of ids; per id, timestamps must increase).
+    /// Allocation-free.
+    pub fn observe(&mut self, o: &Observation) -> ObserveOutcome {
+        if !finite(o) {
+            self.stats.invalid += 1;
+            return ObserveOutcome::Rejected(RejectReason::Invalid);
+        }
+        if o.t > self.t_latest {
+            self.t_latest = o.t;
+            self.prune(o.t);
+        }
+        let slot = match self.slot_of(o.id) {
+            Some(s) => s,
+            None => match self.tracks.iter().position(|t| !t.active) {
+                Some(s) => {
+                    self.init_track(s, o);
+                    self.stats.accepted += 1;
+                    self.stats.tracks_created += 1;
+                    return ObserveOutcome::NewTrack;
+                }
+                None => {
+                    self.stats.table_full += 1;
+                    return ObserveOutcome::Rejected(RejectReason::TableFull);
+                }
+            },
+        };
+        let cfg = self.cfg;
+        let tr = &mut self.tracks[slot];
+        if o.t <= tr.filter.t {
+            self.stats.out_of_order += 1;
+            return ObserveOutcome::Rejected(RejectReason::OutOfOrder);
+        }
+        // Normalised, sign-aligned measurement.
+        let mut q = o.q;
+        let nq = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        q.iter_mut().for_each(|v| *v /= nq);
+        align_quaternion(&mut q, &tr.filter.x[QUAT]);
+        // Physical plausibility gate against the last accepted observation.
+        let dt_obs = o.t - tr.filter.t;
+        let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
+        let da = quat_angle(&q, &tr.last_obs_q);
+        let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin {
+            Some(RejectReason::PositionJump)
+        } else if da > cfg.max_spin * dt_obs + cfg.jump_att_margin {
+            Some(RejectReason::AttitudeJump)
+        } else {
+            None
+        };
+        if let Some(r) = reason {
+            match r {
+                RejectReason::PositionJump => self.stats.pos_jump += 1,
+                _ => self.stats.att_jump += 1,
+            }
+            tr.rejects += 1;
+            if tr.rejects >= cfg.reinit_after_rejects {
+                self.stats.reinit += 1;
+                self.stats.accepted += 1;
+                self.init_track(slot, o);
+                return ObserveOutcome::NewTrack;
+            }
+            return ObserveOutcome::Rejected(r);
+        }
+        tr.rejects = 0;
+        tr.filter.update(&cfg.filter, o.t, &o.p, &q);
+        tr.n_obs += 1;
+        tr.last_obs_p = o.p;
+        tr.last_obs_q = q;
+        tr.pos_bound.relax(dt_obs);
+        tr.att_bound.relax(dt_obs);
+        self.stats.accepted += 1;
+
+        // One model step back in the history → residual test and online refinement.
+        let dt = self.models.dt;
+        let target = o.t - dt;
+        let mut prev = None;
+        for j in 0..tr.hist_len {
+            let idx = (tr.hist_head + HISTORY - 1 - j) % HISTORY;
+            if (tr.hist_t[idx] - target).abs() <= cfg.pair_tolerance {
+                prev = Some(idx);
+                break;
+            }
+        }
+        if let Some(idx) = prev {
+            self.stats.model_pairs += 1;
+            let xp = tr.hist_x[idx];
+            let m = &self.models;
+            // One-step prediction x̂ from the state one model step back.
+            let mut xh = [0.0; N];
+            if m.method == Method::ConstantVelocity {
+                let mut out = [0.0; N];
+                ConstantVelocity { frame_rate: m.frame_rate }.forecast(&xp, dt, &mut out);
+                xh = out;
+            } else {
+                m.trans_lift.lift(&xp[TRANS], &mut self.phi_t);
+                m.att_lift.lift(&xp[ROT], &mut self.phi_a);
+                tr.trans.step_rows(6, &self.phi_t, &[], &mut xh[TRANS]);
+                tr.att.step_rows(7, &self.phi_a, &[], &mut xh[ROT]);
+            }
+            let rp = (0..3).map(|i| (xh[i] - o.p[i]).powi(2)).sum::<f64>().sqrt();
+            let ra = quat_angle(&xh[QUAT], &q);
+            tr.last_residual = [rp, ra];
+            if o.t - tr.last_event_t >= cfg.event_refractory {
+                let ev_p = tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise, cfg.event_factor);
+                let ev_a = tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor);
+                if ev_p {
+                    tr.pos_bound.grow(rp, rp / dt);
+                    tr.rls_t.reset_covariance();
+                }
+                if ev_a {
+                    tr.att_bound.grow(ra, ra / dt);
+                    tr.rls_a.reset_covariance();
+                }
+                if ev_p || ev_a {
+                    tr.events += 1;
+                    tr.last_event_t = o.t;
+                    self.stats.events += 1;
+                }
+            }
+            if m.method.online() {
+                let xn = tr.filter.x;
+                tr.rls_t.update_model(&mut tr.trans, &self.phi_t[..m.trans.p], &xn[TRANS]);
+                let mut ya = [0.0; 7];
+                ya.copy_from_slice(&xn[ROT]);
+                align_quaternion(&mut ya[0..4], &xp[QUAT]);
+                tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &ya);
+                // A diverged refinement must never poison forecasts: fall back to the fit.
+                if !tr.trans.ab.iter().all(|v| v.is_finite()) {
+                    tr.trans.ab.copy_from_slice(&m.trans.ab);
+                    tr.rls_t.reset_covariance();
+                }
+                if !tr.att.ab.iter().all(|v| v.is_finite()) {
+                    tr.att.ab.copy_from_slice(&m.att.ab);
+                    tr.rls_a.reset_covariance();
+                }
+            }
+        }
+        push_hist(tr);
+        ObserveOutcome::Accepted
+    }
+
+    /// Forecast every active track with at least `min_obs_for_forecast` observations
+    /// `H = buf.horizon()` steps ahead from its last estimate. Returns the number of tracks
+    /// written. Allocation-free.
+    pub fn forecast(&mut self, buf: &mut ForecastBuffer) -> usize {
+        let h = buf.h.min(self.models.horizon);
+        assert!((buf.dt - self.models.dt).abs() < 1e-12, "forecast buffer dt differs from the model dt");
+        let mut n = 0;
+        for tr in self.tracks.iter().filter(|t| t.active && t.n_obs >= self.cfg.min_obs_for_forecast) {
+            let out = &mut buf.states[n * buf.h * N..(n * buf.h + h) * N];
+            self.engine.run(&self.models, &tr.trans, &tr.att, &tr.filter.x, h, out);
+            for k in 1..=h {
+                buf.pos_radius[n * buf.h + k - 1] = tr.pos_bound.radius(k);
+                buf.att_radius[n * buf.h + k - 1] = tr.att_bound.radius(k);
+            }
+            buf.ids[n] = tr.id;
+            buf.t0[n] = tr.filter.t;
+            n += 1;
+        }
+        buf.len = n;
+        self.stats.forecast_fallbacks = self.engine.fallbacks;
+        n
+    }
+}
+
+fn push_hist(tr: &mut Track) {
+    tr.hist_t[tr.hist_head] = tr.filter.t;
+    tr.hist_x[tr.hist_head] = tr.filter.x;
+    tr.hist_head = (tr.hist_head + 1) % HISTORY;
+    tr.hist_len = (tr.hist_len + 1).min(HISTORY);
+}
