@@ -42,7 +42,7 @@ impl Default for FilterConfig {
             pos_sigma: 0.01,
             att_sigma: 0.01,
             accel_psd: 1e-3,
-            ang_accel_psd: 0.5,
+            ang_accel_psd: 0.01,
             init_vel_sigma: 1.0,
             init_rate_sigma: 2.0,
             frame_rate: 1.1314e-3,

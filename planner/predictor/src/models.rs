@@ -175,7 +175,7 @@ impl Default for FitConfig {
             rbf_centres: 24,
             rbf_sigma: 1.5,
             collocation: 2000,
-            dual_ridge: 1e-4,
+            dual_ridge: 1e-2,
             bound_quantile: 0.95,
             bound_margin: 1.2,
             bound_stride: 5,

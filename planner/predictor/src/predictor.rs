@@ -45,8 +45,10 @@ pub struct PredictorConfig {
     pub event_pos_noise: f64,
     /// Event: attitude noise allowance [rad].
     pub event_att_noise: f64,
-    /// Event: minimum time between two events of one track [s].
+    /// Event: minimum time between two events of one track and channel [s].
     pub event_refractory: f64,
+    /// Event: no event tests before a track has this many observations (filter transient).
+    pub event_min_obs: u32,
     /// Tracks need this many accepted observations before they are forecast.
     pub min_obs_for_forecast: u32,
 }
@@ -62,12 +64,13 @@ impl Default for PredictorConfig {
             reinit_after_rejects: 10,
             track_timeout: 1.0,
             pair_tolerance: 0.005,
-            rls_trans: RlsConfig { lambda: 0.999, p0: 1e-2, max_trace: 1e6 },
-            rls_att: RlsConfig { lambda: 0.995, p0: 1e-1, max_trace: 1e6 },
+            rls_trans: RlsConfig { lambda: 0.999, p0: 1e-5, max_trace: 1e6 },
+            rls_att: RlsConfig { lambda: 0.995, p0: 1.0, max_trace: 1e6 },
             event_factor: 3.0,
             event_pos_noise: 0.05,
             event_att_noise: 0.08,
             event_refractory: 0.5,
+            event_min_obs: 25,
             min_obs_for_forecast: 5,
         }
     }
@@ -147,7 +150,7 @@ struct Track {
     rls_a: Rls,
     pos_bound: ErrorBound,
     att_bound: ErrorBound,
-    last_event_t: f64,
+    last_event_t: [f64; 2],
     events: u32,
     last_residual: [f64; 2],
 }
@@ -163,7 +166,7 @@ pub struct TrackInfo {
     pub state: [f64; N],
     /// Accepted observations.
     pub n_obs: u32,
-    /// Events detected on this track.
+    /// Events detected on this track (position and/or attitude at one observation).
     pub events: u32,
     /// Last one-step residuals `[position m, attitude rad]` (NaN before the first pair).
     pub last_residual: [f64; 2],
@@ -296,7 +299,7 @@ impl DebrisPredictor {
             rls_a: Rls::for_model_state_rows(&models.att, cfg.rls_att),
             pos_bound: models.pos_bound.clone(),
             att_bound: models.att_bound.clone(),
-            last_event_t: f64::NEG_INFINITY,
+            last_event_t: [f64::NEG_INFINITY; 2],
             events: 0,
             last_residual: [f64::NAN; 2],
         };
@@ -394,7 +397,7 @@ impl DebrisPredictor {
         tr.rls_a.reset_covariance();
         tr.pos_bound.clone_from(&m.pos_bound);
         tr.att_bound.clone_from(&m.att_bound);
-        tr.last_event_t = f64::NEG_INFINITY;
+        tr.last_event_t = [f64::NEG_INFINITY; 2];
         tr.events = 0;
         tr.last_residual = [f64::NAN; 2];
         push_hist(tr);
@@ -501,22 +504,27 @@ impl DebrisPredictor {
             let rp = (0..3).map(|i| (xh[i] - o.p[i]).powi(2)).sum::<f64>().sqrt();
             let ra = quat_angle(&xh[QUAT], &q);
             tr.last_residual = [rp, ra];
-            if o.t - tr.last_event_t >= cfg.event_refractory {
-                let ev_p = tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise, cfg.event_factor);
-                let ev_a = tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor);
-                if ev_p {
-                    tr.pos_bound.grow(rp, rp / dt);
-                    tr.rls_t.reset_covariance();
-                }
-                if ev_a {
-                    tr.att_bound.grow(ra, ra / dt);
-                    tr.rls_a.reset_covariance();
-                }
-                if ev_p || ev_a {
-                    tr.events += 1;
-                    tr.last_event_t = o.t;
-                    self.stats.events += 1;
-                }
+            // Position and attitude channels have their own refractory period.
+            let armed = tr.n_obs >= cfg.event_min_obs;
+            let ev_p = armed
+                && o.t - tr.last_event_t[0] >= cfg.event_refractory
+                && tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise, cfg.event_factor);
+            let ev_a = armed
+                && o.t - tr.last_event_t[1] >= cfg.event_refractory
+                && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor);
+            if ev_p {
+                tr.pos_bound.grow(rp, rp / dt);
+                tr.rls_t.reset_covariance();
+                tr.last_event_t[0] = o.t;
+            }
+            if ev_a {
+                tr.att_bound.grow(ra, ra / dt);
+                tr.rls_a.reset_covariance();
+                tr.last_event_t[1] = o.t;
+            }
+            if ev_p || ev_a {
+                tr.events += 1;
+                self.stats.events += 1;
             }
             if m.method.online() {
                 let xn = tr.filter.x;

@@ -144,10 +144,12 @@ fn impulse_event_grows_bound_and_forecasts_stay_finite() {
         };
         med.push(impulse_case(method, models));
     }
-    // The fixed EDMD translational model extrapolates badly to a 1 m/s object (training
-    // speeds are cm/s); per-track RLS refinement repairs most of it.
-    assert!(med[2] < 0.5 * med[1], "online {} vs fixed {}", med[2], med[1]);
-    assert!(med[3] < 0.5 * med[1], "dual-data {} vs fixed {}", med[3], med[1]);
+    // The fixed EDMD translational model (fitted on filtered estimates at cm/s) extrapolates
+    // badly to a 1 m/s object; the dual-data model (ridge towards the nominal CW generator)
+    // does not. (The translational RLS is deliberately slow, p0 = 1e-5: faster settings
+    // repair this case but cost accuracy on dense / fast-crossing — see README.)
+    assert!(med[3] < 0.2 * med[1], "dual-data {} vs fixed {}", med[3], med[1]);
+    assert!(med[2] <= 1.05 * med[1], "online {} vs fixed {}", med[2], med[1]);
     // The baseline's straight line is exact for a translating object: centimetres.
     assert!(med[0] < 0.05, "{med:?}");
 }
@@ -208,6 +210,10 @@ fn impulse_case(method: Method, models: Models) -> f64 {
             );
             assert!(tr.events > events_before, "impulse not detected");
             assert!(tr.att_radius[1] > a_before + 0.1, "attitude bound did not grow");
+            assert!(
+                tr.pos_radius[1] > r_before + 0.05 || method == Method::ConstantVelocity,
+                "position bound did not grow"
+            );
         }
     }
     let tr = pr.track(id).unwrap();

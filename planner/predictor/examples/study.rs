@@ -1,0 +1,56 @@
+//! Run the accuracy study: `cargo run --release -p dkrrt-predictor --example study -- [small|medium|full] [--json]`.
+//!
+//! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
+//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `DUAL_RIDGE`, `SCENES` (comma-separated).
+
+use dkrrt_predictor::eval::markdown_table;
+use dkrrt_predictor::{run_study, StudyConfig};
+
+fn env(name: &str) -> Option<f64> {
+    std::env::var(name).ok().and_then(|v| v.parse().ok())
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut cfg = match args.first().map(String::as_str).unwrap_or("medium") {
+        "small" => StudyConfig::small(),
+        "full" => StudyConfig::full(),
+        _ => StudyConfig::medium(),
+    };
+    if let Some(v) = env("PSD_ATT") {
+        cfg.predictor.filter.ang_accel_psd = v;
+    }
+    if let Some(v) = env("PSD_POS") {
+        cfg.predictor.filter.accel_psd = v;
+    }
+    if let Some(v) = env("RLS_T_P0") {
+        cfg.predictor.rls_trans.p0 = v;
+    }
+    if let Some(v) = env("RLS_A_P0") {
+        cfg.predictor.rls_att.p0 = v;
+    }
+    if let Some(v) = env("RLS_A_LAMBDA") {
+        cfg.predictor.rls_att.lambda = v;
+    }
+    if let Some(v) = env("DUAL_RIDGE") {
+        cfg.fit.dual_ridge = v;
+    }
+    if let Ok(s) = std::env::var("SCENES") {
+        cfg.scenes = s.split(',').map(str::to_string).collect();
+    }
+    eprintln!(
+        "study: {} train + {} held-out runs × {} s per scene, warm-up {} s, forecasts every {} s",
+        cfg.train_runs, cfg.test_runs, cfg.duration, cfg.warmup, cfg.eval_every
+    );
+    let t = std::time::Instant::now();
+    let rows = run_study(&cfg).unwrap_or_else(|e| {
+        eprintln!("study failed: {e}");
+        std::process::exit(1)
+    });
+    eprintln!("study took {:.1} s", t.elapsed().as_secs_f64());
+    if args.iter().any(|a| a == "--json") {
+        println!("{}", serde_json::to_string_pretty(&rows).unwrap());
+    } else {
+        print!("{}", markdown_table(&rows));
+    }
+}
