@@ -331,7 +331,7 @@ impl Models {
         for seg in &data.segments {
             let mut s = 0;
             while s < seg.est.len() {
-                if seg.truth.len() >= s + h + 1 && seg.truth[s + 1..=s + h].iter().all(|r| r[0].is_finite()) {
+                if seg.truth.len() > s + h && seg.truth[s + 1..=s + h].iter().all(|r| r[0].is_finite()) {
                     eng.run(self, &self.trans, &self.att, &seg.est[s], h, &mut out);
                     for k in 0..h {
                         let (xh, xt) = (&out[k * N..(k + 1) * N], &seg.truth[s + k + 1]);
