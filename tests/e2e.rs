@@ -64,7 +64,23 @@ fn assert_report_shape(r: &Value) {
 fn realtime_run_reaches_the_goal_with_a_sane_report() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("rt");
-    let out = Command::new(exe()).args(["launch", "--duration", "9", "--report"]).arg(&rp).output().unwrap();
+    // Shared CI VMs stall a vCPU for several ms now and then; 3 stale ticks
+    // (the default) then trigger a safe hold, which is tested on its own
+    // below. This test is about reaching the goal, so it tolerates 20 ms.
+    let dir = std::env::temp_dir().join(format!("dkrrt-rt-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = dir.join("tolerant.toml");
+    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 3 ", "stale_ticks = 20 ");
+    assert_ne!(text, dkrrt_config::DEFAULT_SCENARIO);
+    std::fs::write(&sc, text).unwrap();
+    let out = Command::new(exe())
+        .args(["launch", "--duration", "9", "--scenario"])
+        .arg(&sc)
+        .arg("--report")
+        .arg(&rp)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "launch failed\n{stdout}\n{stderr}");
