@@ -7,18 +7,16 @@
 //! the three is kept (to suppress scheduler noise on a shared machine); the
 //! table shows the mean and the worst of these over all problems.
 
-use dkrrt_otg::{KinState, Limits, Options, Trajectory};
+use dkrrt_otg::{Options, Trajectory};
 use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rsruckig::prelude::*;
 use std::hint::black_box;
 use std::time::Instant;
 
-fn normal(rng: &mut SmallRng, sd: f64) -> f64 {
-    let u1: f64 = rng.random_range(f64::EPSILON..1.0);
-    let u2: f64 = rng.random();
-    sd * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
+#[path = "../tests/support/problems.rs"]
+mod problems;
+use problems::{draw, ruckig_input};
 
 struct Stats {
     ours: Vec<f64>,
@@ -32,30 +30,8 @@ fn run<const N: usize>(n: usize, seed: u64) -> Stats {
     let mut traj = rsruckig::prelude::Trajectory::new(None);
     let mut st = Stats { ours: Vec::with_capacity(n), theirs: Vec::with_capacity(n), failures: 0 };
     while st.ours.len() < n {
-        let mut s = KinState::<N>::default();
-        let mut t = KinState::<N>::default();
-        let mut l = Limits { v_max: [0.0; N], a_max: [0.0; N], j_max: [0.0; N] };
-        let mut input = InputParameter::new(None);
-        for j in 0..N {
-            s.p[j] = normal(&mut rng, 4.0);
-            t.p[j] = normal(&mut rng, 4.0);
-            s.v[j] = if rng.random_bool(0.2) { 0.0 } else { normal(&mut rng, 0.8) };
-            s.a[j] = if rng.random_bool(0.2) { 0.0 } else { normal(&mut rng, 0.8) };
-            t.v[j] = if rng.random_bool(0.2) { 0.0 } else { normal(&mut rng, 0.8) };
-            t.a[j] = if rng.random_bool(0.2) { 0.0 } else { normal(&mut rng, 0.8) };
-            l.v_max[j] = rng.random_range(0.08..16.0);
-            l.a_max[j] = rng.random_range(0.08..16.0);
-            l.j_max[j] = rng.random_range(0.08..16.0);
-            input.current_position[j] = s.p[j];
-            input.current_velocity[j] = s.v[j];
-            input.current_acceleration[j] = s.a[j];
-            input.target_position[j] = t.p[j];
-            input.target_velocity[j] = t.v[j];
-            input.target_acceleration[j] = t.a[j];
-            input.max_velocity[j] = l.v_max[j];
-            input.max_acceleration[j] = l.a_max[j];
-            input.max_jerk[j] = l.j_max[j];
-        }
+        let (s, t, l) = draw::<N>(&mut rng, 0.2);
+        let input = ruckig_input(&s, &t, &l);
         if !matches!(otg.calculate(&input, &mut traj), Ok(RuckigResult::Working)) {
             continue; // infeasible draw: redraw
         }

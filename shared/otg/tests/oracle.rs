@@ -7,35 +7,17 @@ mod common;
 use common::check_traj;
 use dkrrt_otg::{KinState, Limits, Options, Trajectory};
 use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rsruckig::prelude::*;
 
-fn normal(rng: &mut SmallRng, sd: f64) -> f64 {
-    // Box–Muller
-    let u1: f64 = rng.random_range(f64::EPSILON..1.0);
-    let u2: f64 = rng.random();
-    sd * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
+#[path = "support/problems.rs"]
+mod problems;
+use problems::ruckig_input;
 
 /// Draw like Ruckig's own tests: p ~ N(0, 4), v, a ~ N(0, 0.8) each zeroed with
-/// some probability, limits ~ U(0.08, 16).
+/// probability 0.2, limits ~ U(0.08, 16).
 pub fn draw<const N: usize>(rng: &mut SmallRng) -> (KinState<N>, KinState<N>, Limits<N>) {
-    let mut s = KinState::default();
-    let mut t = KinState::default();
-    let mut l = Limits { v_max: [0.0; N], a_max: [0.0; N], j_max: [0.0; N] };
-    let zero_p = 0.2;
-    for j in 0..N {
-        s.p[j] = normal(rng, 4.0);
-        t.p[j] = normal(rng, 4.0);
-        s.v[j] = if rng.random_bool(zero_p) { 0.0 } else { normal(rng, 0.8) };
-        s.a[j] = if rng.random_bool(zero_p) { 0.0 } else { normal(rng, 0.8) };
-        t.v[j] = if rng.random_bool(zero_p) { 0.0 } else { normal(rng, 0.8) };
-        t.a[j] = if rng.random_bool(zero_p) { 0.0 } else { normal(rng, 0.8) };
-        l.v_max[j] = rng.random_range(0.08..16.0);
-        l.a_max[j] = rng.random_range(0.08..16.0);
-        l.j_max[j] = rng.random_range(0.08..16.0);
-    }
-    (s, t, l)
+    problems::draw(rng, 0.2)
 }
 
 fn oracle_duration<const N: usize>(
@@ -44,18 +26,7 @@ fn oracle_duration<const N: usize>(
     t: &KinState<N>,
     l: &Limits<N>,
 ) -> Option<f64> {
-    let mut input = InputParameter::new(None);
-    for j in 0..N {
-        input.current_position[j] = s.p[j];
-        input.current_velocity[j] = s.v[j];
-        input.current_acceleration[j] = s.a[j];
-        input.target_position[j] = t.p[j];
-        input.target_velocity[j] = t.v[j];
-        input.target_acceleration[j] = t.a[j];
-        input.max_velocity[j] = l.v_max[j];
-        input.max_acceleration[j] = l.a_max[j];
-        input.max_jerk[j] = l.j_max[j];
-    }
+    let input = ruckig_input(s, t, l);
     let mut traj = rsruckig::prelude::Trajectory::new(None);
     match otg.calculate(&input, &mut traj) {
         Ok(RuckigResult::Working) => Some(traj.get_duration()),
