@@ -229,8 +229,15 @@ impl Problem {
         p[3 * s] += -self.pf;
         let mut roots = [0.0; MAX_ROOTS];
         let nr = real_roots(&p, lo, hi, &mut roots);
+        self.candidates(c, ts, js, s, &roots[..nr]);
+    }
+
+    /// Turn parameter values `roots` of a family (durations `T_k(x) / x^s`)
+    /// into verified candidates.
+    #[inline]
+    fn candidates(&self, c: &mut Cands, ts: &[[f64; 3]; 5], js: &[f64; 5], s: usize, roots: &[f64]) {
         let mut tv = [0.0; 5];
-        for &x in &roots[..nr] {
+        for &x in roots {
             let sc = if s == 1 { x.powi(-1) } else { 1.0 };
             for (k, t) in ts.iter().enumerate() {
                 tv[k] = ((t[2] * x + t[1]) * x + t[0]) * sc;
@@ -653,7 +660,24 @@ impl Problem {
                 let (lo, hi) = if d > 0.0 { (umin.max(1e-300), umax) } else { (-umax, -umin.max(1e-300)) };
                 // A1² − A2² = C with |A1|, |A2| <= A needs |C| <= A².
                 if cc.abs() <= am * am * (1.0 + 1e-9) && lo <= hi {
-                    self.family5(&mut c, &ts, &js, 1, lo, hi);
+                    // The position residual times u³·J² is u²·q(u)/4 with the
+                    // depressed quartic
+                    // q(u) = u⁴ + 2(2J(v0 + vf) − a0² − af²)·u²
+                    //        + 4(J²(p0 − pf) + J(af·vf − a0·v0) + (a0³ − af³)/3)·u − C²
+                    // (derived by expanding the three-ramp integration), so
+                    // only a quartic has to be solved.
+                    let q = [
+                        -cc * cc,
+                        4.0 * (jd * jd * (self.p0 - self.pf)
+                            + jd * (af * vf - a0 * v0)
+                            + (a0 * a0 * a0 - af * af * af) / 3.0),
+                        2.0 * (2.0 * jd * (v0 + vf) - a0 * a0 - af * af),
+                        0.0,
+                        1.0,
+                    ];
+                    let mut roots = [0.0; MAX_ROOTS];
+                    let nr = real_roots(&q, lo, hi, &mut roots);
+                    self.candidates(&mut c, &ts, &js, 1, &roots[..nr]);
                 }
             }
         }
