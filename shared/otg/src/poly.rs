@@ -173,6 +173,25 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
         }
         _ => {}
     }
+    // Budan's theorem: the number of roots in (lo, hi] is the drop in sign
+    // variations of the Taylor coefficients from lo to hi, minus an even
+    // number. A drop of 0 or 1 decides without the critical points.
+    if lo.is_finite() && hi.is_finite() && lo < hi {
+        let (vlo, flo) = variations(c, lo);
+        let (vhi, fhi) = variations(c, hi);
+        // (A count inconsistent with the end values' signs — rounding —
+        // falls through to the general method.)
+        let change = flo != 0.0 && fhi != 0.0 && (flo < 0.0) != (fhi < 0.0);
+        if flo != 0.0 && fhi != 0.0 && vlo >= vhi {
+            if vlo == vhi && !change {
+                return cnt;
+            }
+            if vlo - vhi == 1 && change {
+                push(bracketed(c, lo, hi, flo), &mut cnt);
+                return cnt;
+            }
+        }
+    }
     // Critical points from the derivative.
     let mut d = [0.0f64; LEN];
     for k in 1..n {
@@ -206,6 +225,31 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
         fprev = fx;
     }
     cnt
+}
+
+/// Sign variations of the Taylor coefficients of `c` at `x` (zeros
+/// skipped), and the value `c(x)`.
+#[inline]
+fn variations(c: &[f64], x: f64) -> (u32, f64) {
+    let n = c.len();
+    let mut b = [0.0f64; LEN];
+    b[..n].copy_from_slice(c);
+    for i in 0..n - 1 {
+        for k in (i..n - 1).rev() {
+            b[k] += x * b[k + 1];
+        }
+    }
+    let mut v = 0;
+    let mut prev = 0.0f64;
+    for &bk in &b[..n] {
+        if bk != 0.0 {
+            if prev != 0.0 && (prev < 0.0) != (bk < 0.0) {
+                v += 1;
+            }
+            prev = bk;
+        }
+    }
+    (v, b[0])
 }
 
 /// Root in `[a, b]` where the sign changes: Newton steps safeguarded by

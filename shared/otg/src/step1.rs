@@ -232,6 +232,23 @@ impl Problem {
         self.candidates(c, ts, js, s, &roots[..nr]);
     }
 
+    /// Real roots of `poly` (ascending coefficients) in `[lo, hi]` as candidates.
+    #[inline]
+    fn family_poly(
+        &self,
+        c: &mut Cands,
+        poly: &[f64],
+        ts: &[[f64; 3]; 5],
+        js: &[f64; 5],
+        s: usize,
+        lo: f64,
+        hi: f64,
+    ) {
+        let mut roots = [0.0; MAX_ROOTS];
+        let nr = real_roots(poly, lo, hi, &mut roots);
+        self.candidates(c, ts, js, s, &roots[..nr]);
+    }
+
     /// Turn parameter values `roots` of a family (durations `T_k(x) / x^s`)
     /// into verified candidates.
     #[inline]
@@ -576,6 +593,18 @@ impl Problem {
             }
             let js = [jd, 0.0, -jd, 0.0, jd];
             let ij = 1.0 / jd;
+            // The position equations of the families below, expanded in
+            // closed form (J = jd); they share
+            // K1 = J(v0 + vf) − (a0² + af²)/2,
+            // K2 = 2J²(p0 − pf) + 2J(af·vf − a0·v0) + 2(a0³ − af³)/3,
+            // K3 = J²(vf² − v0²) + J(a0²·v0 − af²·vf) − (a0⁴ − af⁴)/4.
+            let (a0s, afs) = (a0 * a0, af * af);
+            let k1 = jd * (v0 + vf) - 0.5 * (a0s + afs);
+            let k2 = 2.0 * jd * jd * (self.p0 - self.pf)
+                + 2.0 * jd * (af * vf - a0 * v0)
+                + (2.0 / 3.0) * (a0s * a0 - afs * af);
+            let k3 =
+                jd * jd * (vf * vf - v0 * v0) + jd * (a0s * v0 - afs * vf) - 0.25 * (a0s * a0s - afs * afs);
             // ACC0_ACC1: A1 t2 + A2 t6 = R.
             {
                 let r = dv - (a1 * a1 - a0 * a0) / (2.0 * jd) - (af * af - a2 * a2) / (2.0 * jd);
@@ -586,7 +615,14 @@ impl Problem {
                     [r / a2, -a1 / a2, 0.0],
                     [(af - a2) / jd, 0.0, 0.0],
                 ];
-                self.family5(&mut c, &ts, &js, 0, f64::NEG_INFINITY, f64::INFINITY);
+                // Position residual times 2·A·J² in x = t2 (A = A1 = −A2).
+                let aa = a1 * a1;
+                let poly = [
+                    4.0 * aa * aa + aa * jd * (7.0 * v0 + vf) - aa * (3.5 * a0s + 0.5 * afs) + a1 * k2 - k3,
+                    2.0 * a1 * jd * (3.0 * aa + 2.0 * jd * v0 - a0s),
+                    2.0 * aa * jd * jd,
+                ];
+                self.family_poly(&mut c, &poly, &ts, &js, 0, f64::NEG_INFINITY, f64::INFINITY);
             }
             // ACC0: A1 = dA, x = A2, t6 = 0.
             {
@@ -604,7 +640,10 @@ impl Problem {
                 if t2_max >= -1e-12 * (1.0 + dv.abs()) {
                     let (lo, hi) = hold_window(&ts, 1, lo - 1e-12 * am, hi + 1e-12 * am, am, jm);
                     if lo <= hi {
-                        self.family5(&mut c, &ts, &js, 0, lo, hi);
+                        // Position residual times 2·A1·J² in x = A2.
+                        let w = 2.0 * jd * vf - afs;
+                        let poly = [a1 * a1 * k1 + a1 * k2 + k3, -2.0 * a1 * w, a1 * a1 + w, -2.0 * a1, 1.0];
+                        self.family_poly(&mut c, &poly, &ts, &js, 0, lo, hi);
                     }
                 }
             }
@@ -624,7 +663,10 @@ impl Problem {
                 if t6_max >= -1e-12 * (1.0 + dv.abs()) {
                     let (lo, hi) = hold_window(&ts, 3, lo - 1e-12 * am, hi + 1e-12 * am, am, jm);
                     if lo <= hi {
-                        self.family5(&mut c, &ts, &js, 0, lo, hi);
+                        // Position residual times −2·A2·J² in x = A1.
+                        let w = 2.0 * jd * v0 - a0s;
+                        let poly = [a2 * a2 * k1 - a2 * k2 - k3, -2.0 * a2 * w, a2 * a2 + w, -2.0 * a2, 1.0];
+                        self.family_poly(&mut c, &poly, &ts, &js, 0, lo, hi);
                     }
                 }
             }
@@ -666,18 +708,9 @@ impl Problem {
                     //        + 4(J²(p0 − pf) + J(af·vf − a0·v0) + (a0³ − af³)/3)·u − C²
                     // (derived by expanding the three-ramp integration), so
                     // only a quartic has to be solved.
-                    let q = [
-                        -cc * cc,
-                        4.0 * (jd * jd * (self.p0 - self.pf)
-                            + jd * (af * vf - a0 * v0)
-                            + (a0 * a0 * a0 - af * af * af) / 3.0),
-                        2.0 * (2.0 * jd * (v0 + vf) - a0 * a0 - af * af),
-                        0.0,
-                        1.0,
-                    ];
-                    let mut roots = [0.0; MAX_ROOTS];
-                    let nr = real_roots(&q, lo, hi, &mut roots);
-                    self.candidates(&mut c, &ts, &js, 1, &roots[..nr]);
+                    // (= u⁴ + 4·K1·u² + 2·K2·u − C²)
+                    let q = [-cc * cc, 2.0 * k2, 4.0 * k1, 0.0, 1.0];
+                    self.family_poly(&mut c, &q, &ts, &js, 1, lo, hi);
                 }
             }
         }

@@ -35,6 +35,68 @@ fn cruise(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, VelPr
     Some((f, h1, t4.max(0.0), h2))
 }
 
+/// Cruise family residual at cruise velocity `vc` with the cruise time
+/// allowed to be negative (continuous over the whole velocity range).
+#[inline]
+fn cruise_ext(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, VelProfile)> {
+    let h1 = velocity::min_time(pb.v0, pb.a0, vc, 0.0, pb.am, pb.jm)?;
+    let h2 = velocity::min_time(vc, 0.0, pb.vf, pb.af, pb.am, pb.jm)?;
+    let t4 = tt - h1.duration() - h2.duration();
+    let f = vel_end(&h1, pb.v0, pb.a0) + vel_end(&h2, vc, 0.0) + vc * t4 - (pb.pf - pb.p0);
+    Some((f, h1, t4, h2))
+}
+
+/// Fast path: Illinois on the extended residual over `[lo, hi]`; the root is
+/// returned as a profile if its cruise time is not negative and it verifies.
+fn by_cruise_ext(pb: &Problem, tt: f64, lo: f64, hi: f64) -> Option<Profile> {
+    let (mut a, mut b) = (lo, hi);
+    let (mut fa, mut fb) = (cruise_ext(pb, tt, a)?.0, cruise_ext(pb, tt, b)?.0);
+    if !((fa <= 0.0) != (fb <= 0.0)) {
+        return None;
+    }
+    let ftol = 1e-14 * (1.0 + (pb.pf - pb.p0).abs());
+    let mut side = 0i8;
+    let mut best = if fa.abs() < fb.abs() { a } else { b };
+    for _ in 0..100 {
+        let mut m = (a * fb - b * fa) / (fb - fa);
+        if !(m > a.min(b) && m < a.max(b)) {
+            m = 0.5 * (a + b);
+        }
+        let (fm, ..) = cruise_ext(pb, tt, m)?;
+        best = m;
+        if (fm <= 0.0) == (fa <= 0.0) {
+            a = m;
+            fa = fm;
+            if side == -1 {
+                fb *= 0.5;
+            }
+            side = -1;
+        } else {
+            b = m;
+            fb = fm;
+            if side == 1 {
+                fa *= 0.5;
+            }
+            side = 1;
+        }
+        if fm.abs() <= ftol || (b - a).abs() <= 1e-15 * (a.abs() + b.abs()) {
+            break;
+        }
+    }
+    for x in [best, a, b] {
+        let (_, h1, t4, h2) = cruise_ext(pb, tt, x)?;
+        if t4 < -1e-12 * (1.0 + tt) {
+            return None;
+        }
+        if let Some(pr) = cruise_profile(pb, &h1, t4.max(0.0), &h2) {
+            if pb.accept(&pr) {
+                return Some(pr);
+            }
+        }
+    }
+    None
+}
+
 fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Option<Profile> {
     let t = [h1.t[0], h1.t[1], h1.t[2], t4, h2.t[0], h2.t[1], h2.t[2]];
     let j = [h1.j[0], h1.j[1], h1.j[2], 0.0, h2.j[0], h2.j[1], h2.j[2]];
@@ -49,6 +111,9 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     let hi0 = pb.vm.min(pb.v0.max(pb.vf) + reach);
     if !(lo0 <= hi0) {
         return None;
+    }
+    if let Some(pr) = by_cruise_ext(pb, tt, lo0, hi0) {
+        return Some(pr);
     }
     // The window where the two velocity profiles fit into the duration:
     // g(vc) = T1 + T2 <= tt. Golden-section search for the minimum of g, then
