@@ -263,9 +263,10 @@ fn bracketed(c: &[f64], mut a: f64, mut b: f64, fa: f64) -> f64 {
         x = 0.5 * (a + b);
     }
     for _ in 0..64 {
-        let (mut f, mut df, mut m) = (0.0, 0.0, 0.0);
+        let (mut f, mut df, mut d2, mut m) = (0.0, 0.0, 0.0, 0.0);
         let ax = x.abs();
         for &ck in c.iter().rev() {
+            d2 = d2 * x + df;
             df = df * x + f;
             f = f * x + ck;
             m = m * ax + ck.abs();
@@ -278,7 +279,8 @@ fn bracketed(c: &[f64], mut a: f64, mut b: f64, fa: f64) -> f64 {
         } else {
             b = x;
         }
-        let xn = x - f / df;
+        // Halley step (f''/2 = d2).
+        let xn = x - f * df / (df * df - f * d2);
         let next = if df != 0.0 && xn > a && xn < b { xn } else { 0.5 * (a + b) };
         if (next - x).abs() <= 2.0 * f64::EPSILON * x.abs()
             || b - a <= 2.0 * f64::EPSILON * a.abs().max(b.abs())

@@ -35,6 +35,99 @@ fn cruise(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, VelPr
     Some((f, h1, t4.max(0.0), h2))
 }
 
+/// The time-optimal velocity ramp between a state with zero acceleration
+/// and `(v, a)`: its jerk sign `s`, peak acceleration `ap` (or the plateau
+/// at `±am` with hold `th`). `from_rest` (zero acceleration at the start):
+/// `(vz, 0) → (v, a)`, else `(v, a) → (vz, 0)`. The sign follows from the
+/// velocity reached by ramping the acceleration straight to its end value.
+#[inline(always)]
+fn ramp(v: f64, a: f64, vz: f64, from_rest: bool, am: f64, jm: f64) -> (f64, f64, f64) {
+    // Velocity change from the zero-acceleration end towards the other end.
+    let (dv, free) = if from_rest {
+        (v - vz, v - vz - a * a.abs() / (2.0 * jm))
+    } else {
+        (vz - v, vz - v - a * a.abs() / (2.0 * jm))
+    };
+    let s = if free >= 0.0 { 1.0 } else { -1.0 };
+    let sj = s * jm;
+    let sq = (sj * dv + 0.5 * a * a).max(0.0);
+    let ap = sq.sqrt();
+    if ap > am {
+        let ap = s * am;
+        (s, ap, (dv - (2.0 * am * am - a * a) / (2.0 * sj)) / ap)
+    } else {
+        (s, s * ap, 0.0)
+    }
+}
+
+/// Cruise family at cruise velocity `vc` (cruise time allowed negative):
+/// position residual `f`, its derivative `df/dvc = t4 + (r1 + r2)/2` (`r1`,
+/// `r2`: the ramps next to the cruise; from `d(P − vc·T)/dvc = −T + r/2` for
+/// each velocity profile), phase durations and jerks.
+#[inline]
+fn cruise_newton(pb: &Problem, tt: f64, vc: f64) -> (f64, f64, [f64; 7], [f64; 7]) {
+    let (am, jm) = (pb.am, pb.jm);
+    let (s1, ap1, h1) = ramp(pb.v0, pb.a0, vc, false, am, jm);
+    let (s2, ap2, h2) = ramp(pb.vf, pb.af, vc, true, am, jm);
+    let (ij1, ij2) = (s1 / jm, s2 / jm);
+    let t = [(ap1 - pb.a0) * ij1, h1, ap1 * ij1, 0.0, ap2 * ij2, h2, (ap2 - pb.af) * ij2];
+    let j = [s1 * jm, 0.0, -s1 * jm, 0.0, s2 * jm, 0.0, -s2 * jm];
+    let t4 = tt - (t[0] + t[1] + t[2]) - (t[4] + t[5] + t[6]);
+    let (mut p, mut v, mut a) = (0.0, pb.v0, pb.a0);
+    for k in 0..3 {
+        (p, v, a) = integrate(t[k], p, v, a, j[k]);
+    }
+    let _ = (v, a);
+    let p1 = p;
+    let (mut p, mut v, mut a) = (0.0, vc, 0.0);
+    for k in 4..7 {
+        (p, v, a) = integrate(t[k], p, v, a, j[k]);
+    }
+    let _ = (v, a);
+    let f = p1 + p + vc * t4 - (pb.pf - pb.p0);
+    let mut t = t;
+    t[3] = t4;
+    (f, t4 + 0.5 * (t[2] + t[4]), t, j)
+}
+
+/// Fast path: safeguarded Newton on the cruise residual (increasing in `vc`
+/// wherever the cruise time is not negative) from the mean velocity.
+fn by_cruise_newton(pb: &Problem, tt: f64, lo: f64, hi: f64) -> Option<Profile> {
+    let (mut a, mut b) = (lo, hi);
+    let dp = pb.pf - pb.p0;
+    let mut x = (dp / tt).clamp(a, b);
+    let ftol = 1e-15 * (1.0 + dp.abs());
+    let mut res = cruise_newton(pb, tt, x);
+    for _ in 0..40 {
+        let (f, df, ..) = res;
+        if !f.is_finite() {
+            return None;
+        }
+        if f.abs() <= ftol {
+            break;
+        }
+        if f < 0.0 {
+            a = x;
+        } else {
+            b = x;
+        }
+        let xn = x - f / df;
+        let next = if df > 0.0 && xn > a && xn < b { xn } else { 0.5 * (a + b) };
+        if (next - x).abs() <= 1e-15 * (1.0 + x.abs()) {
+            break;
+        }
+        x = next;
+        res = cruise_newton(pb, tt, x);
+    }
+    let (_, _, mut t, j) = res;
+    if t[3] < -1e-12 * (1.0 + tt) {
+        return None;
+    }
+    t[3] = t[3].max(0.0);
+    let pr = pb.build(&t, &j)?;
+    pb.accept(&pr).then_some(pr)
+}
+
 /// Cruise family residual at cruise velocity `vc` with the cruise time
 /// allowed to be negative (continuous over the whole velocity range).
 #[inline]
@@ -111,6 +204,9 @@ fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
     let hi0 = pb.vm.min(pb.v0.max(pb.vf) + reach);
     if !(lo0 <= hi0) {
         return None;
+    }
+    if let Some(pr) = by_cruise_newton(pb, tt, lo0, hi0) {
+        return Some(pr);
     }
     if let Some(pr) = by_cruise_ext(pb, tt, lo0, hi0) {
         return Some(pr);
