@@ -104,10 +104,36 @@ fn mul35(a: &[f64; 3], b: &[f64; 5]) -> [f64; 7] {
     r
 }
 
+/// Verified candidate profiles, stored compactly (every jerk of a
+/// candidate is `0` or `±jm`, and it has at most 7 phases).
 struct Cands {
     n: usize,
+    /// Durations.
     t: [f64; MAX_CAND],
-    p: [Profile; MAX_CAND],
+    len: [u8; MAX_CAND],
+    ph: [[f64; 7]; MAX_CAND],
+    sign: [[i8; 7]; MAX_CAND],
+}
+
+impl Cands {
+    fn new() -> Self {
+        Cands {
+            n: 0,
+            t: [0.0; MAX_CAND],
+            len: [0; MAX_CAND],
+            ph: [[0.0; 7]; MAX_CAND],
+            sign: [[0; 7]; MAX_CAND],
+        }
+    }
+
+    /// Candidate `i` as a profile of `pb`.
+    fn get(&self, pb: &Problem, i: usize) -> Profile {
+        let mut pr = Profile::new(pb.p0, pb.v0, pb.a0);
+        for k in 0..self.len[i] as usize {
+            pr.push(self.ph[i][k], f64::from(self.sign[i][k]) * pb.jm);
+        }
+        pr
+    }
 }
 
 impl Problem {
@@ -142,9 +168,22 @@ impl Problem {
     }
 
     fn add(&self, c: &mut Cands, pr: Profile) {
-        if c.n < MAX_CAND && self.accept(&pr) {
-            c.t[c.n] = pr.duration();
-            c.p[c.n] = pr;
+        if c.n < MAX_CAND && pr.n <= 7 && self.accept(&pr) {
+            let i = c.n;
+            c.t[i] = pr.duration();
+            c.len[i] = pr.n as u8;
+            for k in 0..pr.n {
+                c.ph[i][k] = pr.t[k];
+                let j = pr.j[k];
+                debug_assert!(j == 0.0 || j.abs() == self.jm);
+                c.sign[i][k] = if j > 0.0 {
+                    1
+                } else if j < 0.0 {
+                    -1
+                } else {
+                    0
+                };
+            }
             c.n += 1;
         }
     }
@@ -272,7 +311,7 @@ impl Problem {
     /// quadratics in the family's parameter `x`. Returns a verified profile
     /// of duration `tt`.
     pub fn with_duration_holds(&self, tt: f64) -> Option<Profile> {
-        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let mut c = Cands::new();
         let (v0, a0, vf, af, am, jm) = (self.v0, self.a0, self.vf, self.af, self.am, self.jm);
         let dv = vf - v0;
         let z = [0.0; 3];
@@ -399,7 +438,7 @@ impl Problem {
             let (lo, hi) = win(d, true);
             self.family5(&mut c, &[t1, t2, t3, t4, z], &[jd, -jd, jd, -jd, 0.0], 1, lo, hi);
         }
-        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
+        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.get(self, i))
     }
 
     /// Step-2 families with a prescribed duration `tt` (five merged phases
@@ -407,7 +446,7 @@ impl Problem {
     /// parameterized by `w = A1 − A2`; returns a verified profile of duration `tt`.
     #[cfg(test)]
     pub fn with_duration_holds_lp(&self, tt: f64) -> Option<Profile> {
-        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let mut c = Cands::new();
         let (v0, a0, vf, af, am, jm) = (self.v0, self.a0, self.vf, self.af, self.am, self.jm);
         let dv = vf - v0;
         for d in [1.0f64, -1.0] {
@@ -539,12 +578,12 @@ impl Problem {
                 if d > 0.0 { (1e-300, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), -1e-300) };
             self.family(&mut c, &[t1, t2, t3, t4], &[jd, -jd, jd, -jd], lo, hi);
         }
-        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.p[i])
+        (0..c.n).find(|&i| (c.t[i] - tt).abs() <= 1e-9 * (1.0 + tt)).map(|i| c.get(self, i))
     }
 
     /// All step-1 candidates; `None` if there is none (numerical failure).
     pub fn solve(&self) -> Option<Step1> {
-        let mut c = Cands { n: 0, t: [0.0; MAX_CAND], p: [Profile::new(0.0, 0.0, 0.0); MAX_CAND] };
+        let mut c = Cands::new();
         let (v0, a0, vf, af) = (self.v0, self.a0, self.vf, self.af);
         let (vm, am, jm) = (self.vm, self.am, self.jm);
         let dv = vf - v0;
@@ -732,13 +771,13 @@ impl Problem {
                 nu += 1;
             }
         }
-        let best = c.p[u[0]];
+        let best = c.get(self, u[0]);
         let mut out =
             Step1 { best, t_min: c.t[u[0]], blocked: [(0.0, 0.0); 2], right: [best; 2], n_blocked: 0 };
         let mut k = 1;
         while k + 1 < nu && out.n_blocked < 2 {
             out.blocked[out.n_blocked] = (c.t[u[k]], c.t[u[k + 1]]);
-            out.right[out.n_blocked] = c.p[u[k + 1]];
+            out.right[out.n_blocked] = c.get(self, u[k + 1]);
             out.n_blocked += 1;
             k += 2;
         }
