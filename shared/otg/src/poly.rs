@@ -231,6 +231,37 @@ pub(crate) fn real_roots(c: &[f64], lo: f64, hi: f64, out: &mut [f64; MAX_ROOTS]
 /// skipped), and the value `c(x)`.
 #[inline]
 fn variations(c: &[f64], x: f64) -> (u32, f64) {
+    match c.len() {
+        4 => variations_n::<4>(c, x),
+        5 => variations_n::<5>(c, x),
+        6 => variations_n::<6>(c, x),
+        7 => variations_n::<7>(c, x),
+        _ => variations_slow(c, x),
+    }
+}
+
+#[inline(always)]
+fn variations_n<const M: usize>(c: &[f64], x: f64) -> (u32, f64) {
+    let mut b = [0.0f64; M];
+    b.copy_from_slice(&c[..M]);
+    for i in 0..M - 1 {
+        for k in (i..M - 1).rev() {
+            b[k] += x * b[k + 1];
+        }
+    }
+    let mut v = 0;
+    let mut zero = false;
+    for k in 0..M - 1 {
+        v += ((b[k].to_bits() ^ b[k + 1].to_bits()) >> 63) as u32;
+        zero |= b[k] == 0.0;
+    }
+    if zero || b[M - 1] == 0.0 {
+        return variations_slow(c, x);
+    }
+    (v, b[0])
+}
+
+fn variations_slow(c: &[f64], x: f64) -> (u32, f64) {
     let n = c.len();
     let mut b = [0.0f64; LEN];
     b[..n].copy_from_slice(c);
