@@ -130,7 +130,6 @@ impl<const N: usize> Trajectory<N> {
         let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
         let mut finals = [[0.0; 3]; N];
         let mut brake_t = [0.0f64; N];
-        let mut heads = [Profile::new(0.0, 0.0, 0.0); N];
         let mut steps: [Option<Step1>; N] = [None; N];
         let mut problems: [Option<Problem>; N] = [None; N];
         let mut t_sync = 0.0f64;
@@ -144,7 +143,7 @@ impl<const N: usize> Trajectory<N> {
             let (vm, am, jm) = (limits.v_max[j], limits.a_max[j], limits.j_max[j]);
             let b = position_brake(v0, a0, vm, am, jm);
             let (head, s) = start_with_brake(p0, v0, a0, &b);
-            heads[j] = head;
+            profiles[j] = head;
             brake_t[j] = b.duration();
             let pb = Problem {
                 p0: s.0,
@@ -157,12 +156,11 @@ impl<const N: usize> Trajectory<N> {
                 am,
                 jm,
             };
-            let st = pb.solve().ok_or(OtgError::NoSolution { joint: j })?;
+            let st = steps[j].insert(pb.solve().ok_or(OtgError::NoSolution { joint: j })?);
             t_sync = t_sync.max(brake_t[j] + st.t_min);
             if !(t_sync < 1e12) {
                 return Err(OtgError::DurationTooLong { joint: j, duration: t_sync });
             }
-            steps[j] = Some(st);
             problems[j] = Some(pb);
             finals[j] = [target.p[j], target.v[j], target.a[j]];
         }
@@ -174,9 +172,7 @@ impl<const N: usize> Trajectory<N> {
         if options.sync == Sync::None {
             for j in 0..N {
                 if let Some(st) = &steps[j] {
-                    let mut pr = heads[j];
-                    pr.extend(&st.best);
-                    profiles[j] = pr;
+                    profiles[j].extend(&st.best);
                 }
             }
             let t = adjust_duration(t_sync, options);
@@ -205,16 +201,15 @@ impl<const N: usize> Trajectory<N> {
             let (Some(st), Some(pb)) = (&steps[j], &problems[j]) else { continue };
             let tt = t_sync - brake_t[j];
             let close = |x: f64| (tt - x).abs() <= 1e-12 * (1.0 + t_sync);
-            let main = if close(st.t_min) {
-                st.best
+            // The heads (braking phases) are already in `profiles`.
+            if close(st.t_min) {
+                profiles[j].extend(&st.best);
             } else if let Some(k) = (0..st.n_blocked).find(|&k| close(st.blocked[k].1)) {
-                st.right[k]
+                profiles[j].extend(&st.right[k]);
             } else {
-                step2::with_duration(pb, tt).ok_or(OtgError::NoSolution { joint: j })?
-            };
-            let mut pr = heads[j];
-            pr.extend(&main);
-            profiles[j] = pr;
+                let main = step2::with_duration(pb, tt).ok_or(OtgError::NoSolution { joint: j })?;
+                profiles[j].extend(&main);
+            }
         }
         for j in 0..N {
             if options.enabled[j] {
