@@ -167,6 +167,61 @@ impl Problem {
         Some(pr)
     }
 
+    /// [`Self::build`] and [`Self::add`] in one, without building the
+    /// profile: returns whether the candidate was added.
+    fn add_raw(&self, c: &mut Cands, t: &[f64], j: &[f64]) -> bool {
+        let n = t.len();
+        let scale: f64 = 1e-10 * (1.0 + t.iter().map(|x| x.abs()).sum::<f64>());
+        if !t.iter().all(|&ti| ti >= -scale && ti.is_finite()) {
+            return false;
+        }
+        let mut tc = [0.0; 7];
+        for (k, &ti) in t.iter().enumerate() {
+            tc[k] = ti.max(0.0);
+        }
+        if c.n >= MAX_CAND || !raw_within_limits(self.v0, self.a0, &tc[..n], j, self.vm, self.am, self.jm, 2)
+        {
+            return false;
+        }
+        // End state and duration as the profile (phases of zero duration
+        // dropped; integrating them is exact anyway) would give.
+        let (mut p, mut v, mut a) = (self.p0, self.v0, self.a0);
+        let mut dur = 0.0;
+        for k in 0..n {
+            if tc[k] > 0.0 {
+                (p, v, a) = integrate(tc[k], p, v, a, j[k]);
+                dur += tc[k];
+            }
+        }
+        if !((p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
+            && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
+            && (a - self.af).abs() <= 1e-11 * (1.0 + self.am))
+        {
+            return false;
+        }
+        let i = c.n;
+        c.t[i] = dur;
+        let mut len = 0;
+        for k in 0..n {
+            if tc[k] > 0.0 {
+                c.ph[i][len] = tc[k];
+                debug_assert!(j[k] == 0.0 || j[k].abs() == self.jm);
+                c.sign[i][len] = if j[k] > 0.0 {
+                    1
+                } else if j[k] < 0.0 {
+                    -1
+                } else {
+                    0
+                };
+                len += 1;
+            }
+        }
+        c.len[i] = len as u8;
+        c.n += 1;
+        true
+    }
+
+    #[cfg(test)]
     fn add(&self, c: &mut Cands, pr: Profile) {
         if c.n < MAX_CAND && pr.n <= 7 && self.accept(&pr) {
             let i = c.n;
@@ -298,9 +353,7 @@ impl Problem {
             for (k, t) in ts.iter().enumerate() {
                 tv[k] = ((t[2] * x + t[1]) * x + t[0]) * sc;
             }
-            if let Some(pr) = self.build(&tv, js) {
-                self.add(c, pr);
-            }
+            self.add_raw(c, &tv, js);
         }
     }
 
@@ -620,14 +673,10 @@ impl Problem {
                 let t4 = (dp - p1 - p) / (d * vm);
                 let t = [h1.t[0], h1.t[1], h1.t[2], t4, h2.t[0], h2.t[1], h2.t[2]];
                 let j = [h1.j[0], h1.j[1], h1.j[2], 0.0, h2.j[0], h2.j[1], h2.j[2]];
-                if let Some(pr) = self.build(&t, &j) {
-                    let before = c.n;
-                    self.add(&mut c, pr);
-                    // A valid cruise at the velocity limit in this direction
-                    // excludes the non-cruise families of the same direction.
-                    if c.n > before && t4 > 0.0 {
-                        continue;
-                    }
+                // A valid cruise at the velocity limit in this direction
+                // excludes the non-cruise families of the same direction.
+                if self.add_raw(&mut c, &t, &j) && t4 > 0.0 {
+                    continue;
                 }
             }
             let js = [jd, 0.0, -jd, 0.0, jd];
