@@ -335,8 +335,7 @@ impl Problem {
         ts: &[[f64; 3]; 5],
         js: &[f64; 5],
         s: usize,
-        lo: f64,
-        hi: f64,
+        (lo, hi): (f64, f64),
     ) {
         let mut roots = [0.0; MAX_ROOTS];
         let nr = real_roots(poly, lo, hi, &mut roots);
@@ -710,7 +709,7 @@ impl Problem {
                     2.0 * a1 * jd * (3.0 * aa + 2.0 * jd * v0 - a0s),
                     2.0 * aa * jd * jd,
                 ];
-                self.family_poly(&mut c, &poly, &ts, &js, 0, f64::NEG_INFINITY, f64::INFINITY);
+                self.family_poly(&mut c, &poly, &ts, &js, 0, (f64::NEG_INFINITY, f64::INFINITY));
             }
             // ACC0: A1 = dA, x = A2, t6 = 0.
             {
@@ -731,7 +730,7 @@ impl Problem {
                         // Position residual times 2·A1·J² in x = A2.
                         let w = 2.0 * jd * vf - afs;
                         let poly = [a1 * a1 * k1 + a1 * k2 + k3, -2.0 * a1 * w, a1 * a1 + w, -2.0 * a1, 1.0];
-                        self.family_poly(&mut c, &poly, &ts, &js, 0, lo, hi);
+                        self.family_poly(&mut c, &poly, &ts, &js, 0, (lo, hi));
                     }
                 }
             }
@@ -754,7 +753,7 @@ impl Problem {
                         // Position residual times −2·A2·J² in x = A1.
                         let w = 2.0 * jd * v0 - a0s;
                         let poly = [a2 * a2 * k1 - a2 * k2 - k3, -2.0 * a2 * w, a2 * a2 + w, -2.0 * a2, 1.0];
-                        self.family_poly(&mut c, &poly, &ts, &js, 0, lo, hi);
+                        self.family_poly(&mut c, &poly, &ts, &js, 0, (lo, hi));
                     }
                 }
             }
@@ -798,7 +797,7 @@ impl Problem {
                     // only a quartic has to be solved.
                     // (= u⁴ + 4·K1·u² + 2·K2·u − C²)
                     let q = [-cc * cc, 2.0 * k2, 4.0 * k1, 0.0, 1.0];
-                    self.family_poly(&mut c, &q, &ts, &js, 1, lo, hi);
+                    self.family_poly(&mut c, &q, &ts, &js, 1, (lo, hi));
                 }
             }
         }

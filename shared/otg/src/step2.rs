@@ -144,7 +144,7 @@ fn cruise_ext(pb: &Problem, tt: f64, vc: f64) -> Option<(f64, VelProfile, f64, V
 fn by_cruise_ext(pb: &Problem, tt: f64, lo: f64, hi: f64) -> Option<Profile> {
     let (mut a, mut b) = (lo, hi);
     let (mut fa, mut fb) = (cruise_ext(pb, tt, a)?.0, cruise_ext(pb, tt, b)?.0);
-    if !((fa <= 0.0) != (fb <= 0.0)) {
+    if (fa <= 0.0) == (fb <= 0.0) {
         return None;
     }
     let ftol = 1e-14 * (1.0 + (pb.pf - pb.p0).abs());
