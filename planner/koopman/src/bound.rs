@@ -64,6 +64,14 @@ impl ErrorBound {
         let k = k.clamp(1, self.h);
         self.base[k - 1] + self.event_pos + self.event_vel * k as f64 * self.dt
     }
+    /// `out[k − 1] = radius(k)` for `k = 1..=out.len()` (clamped like [`ErrorBound::radius`]).
+    #[inline]
+    pub fn radii(&self, out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let k = (i + 1).min(self.h);
+            *o = self.base[k - 1] + self.event_pos + self.event_vel * k as f64 * self.dt;
+        }
+    }
     /// Validation-only part of the radius `k` steps ahead.
     pub fn base(&self, k: usize) -> f64 {
         self.base[k.clamp(1, self.h) - 1]

@@ -467,3 +467,43 @@ fn nominal_translational_model_is_clohessy_wiltshire() {
     let k = 99 * 6;
     assert!((out[k] - x).abs() < 1e-9 && (out[k + 1] - y).abs() < 1e-9 && (out[k + 2] - z).abs() < 1e-9);
 }
+
+#[test]
+fn exp_fast_matches_std_exp_within_a_few_ulp() {
+    let mut r = rng();
+    let mut worst: f64 = 0.0;
+    for i in 0..200_000 {
+        let x = if i % 2 == 0 { -50.0 * r.random::<f64>() } else { 1400.0 * r.random::<f64>() - 700.0 };
+        let (a, b) = (exp_fast(x), x.exp());
+        worst = worst.max((a - b).abs() / b);
+    }
+    assert!(worst < 5e-16, "max relative error {worst:e}");
+    assert_eq!(exp_fast(0.0), 1.0);
+    assert!(exp_fast(-1e4) < 1e-300 && exp_fast(-1e4) >= 0.0);
+}
+
+#[test]
+fn rbf_lift_equals_the_definition() {
+    let mut r = rng();
+    let (n, k) = (7, 24);
+    let centres: Vec<f64> = (0..n * k).map(|_| r.random::<f64>() - 0.5).collect();
+    let scale: Vec<f64> = (0..n).map(|i| 0.2 + 0.1 * i as f64).collect();
+    for kind in [RbfKind::Gaussian { sigma: 1.5 }, RbfKind::ThinPlate] {
+        let rbf = Rbf::new(n, centres.clone(), kind).with_scale(&scale);
+        let mut out = vec![0.0; rbf.dim()];
+        for _ in 0..100 {
+            let x: Vec<f64> = (0..n).map(|_| r.random::<f64>() - 0.5).collect();
+            rbf.lift(&x, &mut out);
+            assert_eq!(&out[..n], &x[..]);
+            assert_eq!(out[n], 1.0);
+            for (c, cen) in centres.chunks_exact(n).enumerate() {
+                let r2: f64 = (0..n).map(|i| ((x[i] - cen[i]) / scale[i]).powi(2)).sum();
+                let want = match kind {
+                    RbfKind::Gaussian { sigma } => (-r2 / (2.0 * sigma * sigma)).exp(),
+                    RbfKind::ThinPlate => 0.5 * r2 * r2.ln(),
+                };
+                assert!((out[n + 1 + c] - want).abs() < 1e-13 * (1.0 + want.abs()), "{kind:?} centre {c}");
+            }
+        }
+    }
+}

@@ -156,6 +156,10 @@ fn error_bound_from_residuals_grows_and_relaxes() {
     assert!(b.exceeds(1, 3.0 * b.radius(1), 2.0) && !b.exceeds(1, 0.5 * b.radius(1), 1.0));
     b.grow(0.2, 0.5);
     assert!((b.radius(4) - (r4 + 0.2 + 0.5 * 4.0 * 0.1)).abs() < 1e-12);
+    // radii() fills the same values (clamped beyond the horizon).
+    let mut r = [0.0; 6];
+    b.radii(&mut r);
+    assert!((1..=6).all(|k| r[k - 1] == b.radius(k)), "{r:?}");
     b.relax(1e3);
     assert!((b.radius(4) - r4).abs() < 1e-9);
     assert_eq!(b.radius(100), b.radius(4)); // clamped to the horizon

@@ -9,9 +9,8 @@
 use crate::filter::quat_angle;
 use dkrrt_koopman::debris_state::{self, attitude_dictionary, nominal_rhs, N};
 use dkrrt_koopman::{
-    fit_dual, fit_edmd, fit_generator, ConstantVelocity, DualVariant, ErrorBound, FitError, Forecaster,
-    KoopmanModel, Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Rollout, Snapshots, StateConstraint,
-    MAX_HORIZON,
+    fit_dual, fit_edmd, fit_generator, ConstantVelocity, DualVariant, ErrorBound, FitError, KoopmanModel,
+    Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Snapshots, StateConstraint, MAX_HORIZON,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -355,7 +354,52 @@ impl Models {
     }
 }
 
+/// Padded row count of the state-row kernels (translation n = 6, attitude n = 7).
+const ROWS: usize = 8;
+
+/// Copy the `n ≤ 8` state rows of `[A B]` (column-major) into `dst` as `p` columns of
+/// [`ROWS`] entries (zero padded): `dst[j·8 + i] = A[i, j]`.
+fn load_state_rows(model: &KoopmanModel, dst: &mut [f64]) {
+    let (n, p) = (model.n, model.p);
+    for (j, d) in dst[..p * ROWS].chunks_exact_mut(ROWS).enumerate() {
+        for i in 0..ROWS {
+            d[i] = if i < n { model.ab[j * p + i] } else { 0.0 };
+        }
+    }
+}
+
+/// `Σ_j cols[j] · z[j]` over the padded state-row columns (two accumulator sets for ILP;
+/// fixed-size inner loops vectorise).
+#[inline(always)]
+fn state_rows_times(cols: &[f64], z: &[f64]) -> [f64; ROWS] {
+    let (mut a0, mut a1) = ([0.0; ROWS], [0.0; ROWS]);
+    let p = z.len();
+    let pairs = p / 2;
+    for (c, zz) in cols[..pairs * 2 * ROWS].chunks_exact(2 * ROWS).zip(z.chunks_exact(2)) {
+        let (c0, c1) = c.split_at(ROWS);
+        for i in 0..ROWS {
+            a0[i] += c0[i] * zz[0];
+            a1[i] += c1[i] * zz[1];
+        }
+    }
+    if p % 2 == 1 {
+        let c = &cols[(p - 1) * ROWS..p * ROWS];
+        for i in 0..ROWS {
+            a0[i] += c[i] * z[p - 1];
+        }
+    }
+    for i in 0..ROWS {
+        a0[i] += a1[i];
+    }
+    a0
+}
+
 /// Allocation-free roll-out of a 13-state with one method (scratch preallocated).
+///
+/// Koopman methods roll out both models in relift mode, `x⁺ = (A φ(x))[..n]`, fused in one
+/// loop over the steps: the `n` state rows of each model are copied once per call into
+/// padded columns (`8` entries), so a step is one lift plus `p` 8-wide multiply-adds per model,
+/// then the quaternion is renormalised.
 ///
 /// Trust region: a Koopman roll-out started outside the training distribution (e.g. a
 /// noisy rate estimate of a fresh track) can diverge polynomially. From the first step whose
@@ -364,10 +408,10 @@ impl Models {
 /// (counted in [`Engine::fallbacks`]).
 #[derive(Debug, Clone)]
 pub struct Engine {
-    ft: Forecaster,
-    fa: Forecaster,
-    tb: Vec<f64>,
-    ab: Vec<f64>,
+    ct: Vec<f64>,
+    ca: Vec<f64>,
+    zt: Vec<f64>,
+    za: Vec<f64>,
     /// Trust region: maximum speed [m/s].
     pub max_speed: f64,
     /// Trust region: maximum spin [rad/s].
@@ -377,14 +421,14 @@ pub struct Engine {
 }
 
 impl Engine {
-    /// Scratch for the models' sizes and horizon (trust region 5 m/s, 15 rad/s).
+    /// Scratch for the models' sizes (trust region 5 m/s, 15 rad/s).
     pub fn new(models: &Models) -> Self {
-        let h = models.horizon;
+        let (pt, pa) = (models.trans.p, models.att.p);
         Engine {
-            ft: Forecaster::new(models.trans.p),
-            fa: Forecaster::new(models.att.p).with_constraint(StateConstraint::UnitQuaternion { at: 0 }),
-            tb: vec![0.0; h * 6],
-            ab: vec![0.0; h * 7],
+            ct: vec![0.0; pt * ROWS],
+            ca: vec![0.0; pa * ROWS],
+            zt: vec![0.0; pt],
+            za: vec![0.0; pa],
             max_speed: 5.0,
             max_spin: 15.0,
             fallbacks: 0,
@@ -395,6 +439,44 @@ impl Engine {
         let v2 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5];
         let w2 = x[10] * x[10] + x[11] * x[11] + x[12] * x[12];
         x.iter().all(|v| v.is_finite()) && v2 <= self.max_speed.powi(2) && w2 <= self.max_spin.powi(2)
+    }
+
+    /// [`Engine::roll`] compiled for AVX2 (4-wide vectors, no FMA contraction: bit-identical).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn roll_avx2(
+        &mut self,
+        models: &Models,
+        x0: &[f64],
+        pt: usize,
+        pa: usize,
+        out: &mut [f64],
+    ) -> Option<usize> {
+        self.roll(models, x0, pt, pa, out)
+    }
+
+    /// The fused relift loop over `out.len() / 13` steps; returns the first untrusted step.
+    #[inline(always)]
+    fn roll(&mut self, models: &Models, x0: &[f64], pt: usize, pa: usize, out: &mut [f64]) -> Option<usize> {
+        let mut xt = [0.0; 6];
+        xt.copy_from_slice(&x0[debris_state::TRANS]);
+        let mut xa = [0.0; 7];
+        xa.copy_from_slice(&x0[debris_state::ROT]);
+        for (k, o) in out.chunks_exact_mut(N).enumerate() {
+            models.trans_lift.lift(&xt, &mut self.zt);
+            let a = state_rows_times(&self.ct, &self.zt[..pt]);
+            xt.copy_from_slice(&a[..6]);
+            models.att_lift.lift(&xa, &mut self.za);
+            let b = state_rows_times(&self.ca, &self.za[..pa]);
+            xa.copy_from_slice(&b[..7]);
+            StateConstraint::UnitQuaternion { at: 0 }.apply(&mut xa);
+            o[..6].copy_from_slice(&xt);
+            o[6..].copy_from_slice(&xa);
+            if !self.trusted(o) {
+                return Some(k);
+            }
+        }
+        None
     }
 
     /// Forecast `h ≤ models.horizon` steps of the 13-state from `x0` with the given (possibly
@@ -414,14 +496,21 @@ impl Engine {
             cv.forecast(x0, models.dt, out);
             return;
         }
-        let (tb, ab) = (&mut self.tb[..h * 6], &mut self.ab[..h * 7]);
-        self.ft.forecast(trans, &models.trans_lift, &x0[debris_state::TRANS], &[], Rollout::Relift, tb);
-        self.fa.forecast(att, &models.att_lift, &x0[debris_state::ROT], &[], Rollout::Relift, ab);
-        for k in 0..h {
-            out[k * N..k * N + 6].copy_from_slice(&tb[k * 6..(k + 1) * 6]);
-            out[k * N + 6..(k + 1) * N].copy_from_slice(&ab[k * 7..(k + 1) * 7]);
-        }
-        if let Some(bad) = (0..h).find(|&k| !self.trusted(&out[k * N..(k + 1) * N])) {
+        let (pt, pa) = (trans.p, att.p);
+        assert!(trans.n == 6 && att.n == 7 && trans.m == 0 && att.m == 0, "Engine: unexpected model shape");
+        assert!(self.ct.len() >= pt * ROWS && self.ca.len() >= pa * ROWS, "Engine: scratch too small");
+        load_state_rows(trans, &mut self.ct);
+        load_state_rows(att, &mut self.ca);
+        #[cfg(target_arch = "x86_64")]
+        let bad = if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked at run time).
+            unsafe { self.roll_avx2(models, x0, pt, pa, out) }
+        } else {
+            self.roll(models, x0, pt, pa, out)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let bad = self.roll(models, x0, pt, pa, out);
+        if let Some(bad) = bad {
             self.fallbacks += 1;
             let mut start = [0.0; N];
             start.copy_from_slice(if bad == 0 { &x0[..N] } else { &out[(bad - 1) * N..bad * N] });

@@ -558,10 +558,8 @@ impl DebrisPredictor {
         for tr in self.tracks.iter().filter(|t| t.active && t.n_obs >= self.cfg.min_obs_for_forecast) {
             let out = &mut buf.states[n * buf.h * N..(n * buf.h + h) * N];
             self.engine.run(&self.models, &tr.trans, &tr.att, &tr.filter.x, h, out);
-            for k in 1..=h {
-                buf.pos_radius[n * buf.h + k - 1] = tr.pos_bound.radius(k);
-                buf.att_radius[n * buf.h + k - 1] = tr.att_bound.radius(k);
-            }
+            tr.pos_bound.radii(&mut buf.pos_radius[n * buf.h..n * buf.h + h]);
+            tr.att_bound.radii(&mut buf.att_radius[n * buf.h..n * buf.h + h]);
             buf.ids[n] = tr.id;
             buf.t0[n] = tr.filter.t;
             n += 1;
