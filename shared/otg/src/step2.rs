@@ -196,18 +196,19 @@ fn cruise_profile(pb: &Problem, h1: &VelProfile, t4: f64, h2: &VelProfile) -> Op
     pb.build(&t, &j)
 }
 
-fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
-    const K: usize = 24;
-    // Cruise velocities reachable within the duration.
+/// Cruise velocities reachable within the duration `tt`.
+fn cruise_range(pb: &Problem, tt: f64) -> Option<(f64, f64)> {
     let reach = pb.am * tt + pb.a0.abs() * pb.a0.abs() / pb.jm;
     let lo0 = (-pb.vm).max(pb.v0.min(pb.vf) - reach);
     let hi0 = pb.vm.min(pb.v0.max(pb.vf) + reach);
-    if !(lo0 <= hi0) {
-        return None;
-    }
-    if let Some(pr) = by_cruise_newton(pb, tt, lo0, hi0) {
-        return Some(pr);
-    }
+    (lo0 <= hi0).then_some((lo0, hi0))
+}
+
+/// The cruise family by the slower, more thorough searches (see
+/// [`by_cruise_newton`] for the fast path).
+fn by_cruise(pb: &Problem, tt: f64) -> Option<Profile> {
+    const K: usize = 24;
+    let (lo0, hi0) = cruise_range(pb, tt)?;
     if let Some(pr) = by_cruise_ext(pb, tt, lo0, hi0) {
         return Some(pr);
     }
@@ -458,10 +459,18 @@ fn by_reduced_limit(pb: &Problem, tt: f64, which: usize) -> Option<Profile> {
 
 /// A valid profile of duration `tt` (not shorter than the minimum), if found.
 pub(crate) fn with_duration(pb: &Problem, tt: f64) -> Option<Profile> {
-    if let Some(p) = by_cruise(pb, tt) {
+    if let Some((lo0, hi0)) = cruise_range(pb, tt) {
+        if let Some(p) = by_cruise_newton(pb, tt, lo0, hi0) {
+            return Some(p);
+        }
+    }
+    // Where the fast path fails the cruise family has (practically) never
+    // had a solution: the hold families first, then the thorough cruise
+    // searches.
+    if let Some(p) = pb.with_duration_holds(tt) {
         return Some(p);
     }
-    if let Some(p) = pb.with_duration_holds(tt) {
+    if let Some(p) = by_cruise(pb, tt) {
         return Some(p);
     }
     by_reduced_limit(pb, tt, 0)
