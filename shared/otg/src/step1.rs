@@ -709,7 +709,11 @@ impl Problem {
                     2.0 * a1 * jd * (3.0 * aa + 2.0 * jd * v0 - a0s),
                     2.0 * aa * jd * jd,
                 ];
-                self.family_poly(&mut c, &poly, &ts, &js, 0, (f64::NEG_INFINITY, f64::INFINITY));
+                // t2 = x >= 0 and t6 = x − R/A1 >= 0 (with a margin well
+                // above the duration check's tolerance).
+                let x0 = (r / a1).max(0.0);
+                let lo = x0 - 1e-8 * (1.0 + 2.0 * x0 + (r / a1).abs() + 6.0 * am / jm);
+                self.family_poly(&mut c, &poly, &ts, &js, 0, (lo, f64::INFINITY));
             }
             // ACC0: A1 = dA, x = A2, t6 = 0.
             {
