@@ -12,13 +12,17 @@
 //!   (quadratic) equations.
 //! * ACC0 / ACC1: one free peak acceleration, a quartic.
 //! * NONE: peak accelerations `A1, A2` with `A1² − A2² = C` from the velocity
-//!   equation, parameterized by `u = A1 − A2`; the position equation becomes a
-//!   polynomial of degree ≤ 6 in `u`.
+//!   equation, parameterized by `u = A1 − A2`; the position equation becomes
+//!   the depressed quartic `u⁴ + 4K1·u² + 2K2·u − C² = 0`.
 //!
-//! Each family's equation is assembled symbolically (Laurent polynomials in
-//! the free parameter), its real roots are found by derivative-bracketing with
-//! Newton polishing, and every root is turned into a numeric profile that is
-//! verified by exact forward integration and limit checks before acceptance.
+//! The step-1 families' position equations are expanded in closed form (see
+//! `solve`; the step-2 hold families are assembled by fixed-size polynomial
+//! products, the Laurent-polynomial assembly is kept as the test reference).
+//! Real roots in the family's parameter window are counted with Budan's
+//! theorem (recursive derivative bracketing only where that is inconclusive)
+//! and polished by safeguarded Halley steps; every root is turned into a
+//! numeric profile that is verified by exact forward integration and limit
+//! checks before acceptance.
 
 #[cfg(test)]
 use crate::poly::Lp;

@@ -4,10 +4,12 @@
 //! Primary family: a time-optimal velocity profile to a cruise velocity `vc`
 //! (acceleration 0), a cruise, and a time-optimal velocity profile to the
 //! target; the cruise time follows from the duration, and `vc` is the root of
-//! the remaining position equation (bracketed over `[-V, V]`, then bisected).
-//! Fallbacks for the rare durations this family cannot realize: the
-//! time-optimal profile under a reduced jerk or acceleration limit whose
-//! minimum duration equals the prescribed one.
+//! the remaining position equation, found by safeguarded Newton with the
+//! analytic derivative (`by_cruise_newton`). Fallbacks for the rare durations
+//! this family cannot realize: the hold families (`Problem::with_duration_holds`),
+//! more thorough searches of the cruise family, and the time-optimal profile
+//! under a reduced jerk, acceleration or velocity limit whose minimum duration
+//! equals the prescribed one.
 
 #[allow(unused_imports)]
 use crate::profile::raw_within_limits;
