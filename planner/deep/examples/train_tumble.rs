@@ -2,6 +2,8 @@
 //! polynomial EDMD (degree 2) at the training horizon. Prints training time and RMSE.
 //!
 //! `cargo run --release -p dkrrt-deep --example train_tumble [trajectories...]`
+//! (environment overrides: EPOCHS, HIDDEN, LAYERS, EXTRA, LR, BATCH, RESOLVE, RIDGE; VERBOSE=1
+//! prints per-epoch progress).
 
 use dkrrt_deep::testdata::tumbling;
 use dkrrt_deep::*;
@@ -40,7 +42,20 @@ fn main() {
     let steps = 100;
     let test = tumbling(50, steps, 1.0, 999);
     let all: Vec<usize> = (0..test.trajectories.len()).collect();
-    let cfg = TrainConfig::default();
+    // Optional overrides: EPOCHS, HIDDEN, LAYERS, EXTRA, LR, BATCH, RESOLVE, RIDGE.
+    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+    let d = TrainConfig::default();
+    let cfg = TrainConfig {
+        epochs: env("EPOCHS").map_or(d.epochs, |v| v as usize),
+        hidden: env("HIDDEN").map_or(d.hidden, |v| v as usize),
+        layers: env("LAYERS").map_or(d.layers, |v| v as usize),
+        extra: env("EXTRA").map_or(d.extra, |v| v as usize),
+        batch: env("BATCH").map_or(d.batch, |v| v as usize),
+        resolve_every: env("RESOLVE").map_or(d.resolve_every, |v| v as usize),
+        lr: env("LR").unwrap_or(d.lr),
+        ridge: env("RIDGE").unwrap_or(d.ridge),
+        ..d
+    };
     println!("config {cfg:?}");
     println!("| trajectories | samples | train s | epochs | best | deep RMSE @H | EDMD poly2 RMSE @H |");
     for &nt in &sizes {

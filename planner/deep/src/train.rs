@@ -27,7 +27,7 @@ use rand::{Rng, SeedableRng};
 use std::time::Instant;
 
 /// Weight of the lifted-space consistency term.
-pub const LIFT_WEIGHT: f64 = 0.1;
+pub const LIFT_WEIGHT: f64 = 0.0;
 /// Validation windows evaluated per epoch at most (a fixed, evenly spaced subset).
 pub const MAX_VALID_WINDOWS_PER_EPOCH: usize = 4096;
 
@@ -79,7 +79,7 @@ impl Default for TrainConfig {
             horizon: 20,
             epochs: 30,
             resolve_every: 5,
-            lr: 3e-3,
+            lr: 1e-2,
             batch: 256,
             ridge: 1e-6,
             valid_fraction: 0.2,

@@ -68,7 +68,7 @@ fn learns_a_system_that_is_linear_in_a_quadratic_lifting() {
     assert_eq!((rep.n_train, rep.n_valid), (48, 12));
     let deep = deep_rmse(&dk, &test, h);
     let dmd = edmd_rmse(&Polynomial::new(2, 1), &data, &test, h);
-    eprintln!("deep {deep:.2e?}\n dmd {dmd:.2e?}\n report {rep:?}");
+    eprintln!("deep {deep:?}\n dmd {dmd:?}\n report {rep:?}");
     // State spread is ~0.6; DMD (affine) cannot represent x1², the deep lifting can.
     assert!(deep[h - 1] < 0.02, "deep multi-step error too large: {:?}", deep);
     assert!(deep[h - 1] < 0.2 * dmd[h - 1], "deep {deep:?} vs dmd {dmd:?}");
@@ -98,25 +98,20 @@ fn training_is_deterministic_for_a_seed() {
 
 #[test]
 fn tumbling_rigid_body_beats_polynomial_edmd() {
-    let data = common::tumbling(40, 80, 1.0, 11);
-    let test = common::tumbling(10, 80, 1.0, 12);
-    let h = 20;
-    let cfg = TrainConfig {
-        hidden: 24,
-        layers: 2,
-        extra: 12,
-        horizon: h,
-        epochs: 12,
-        batch: 128,
-        ..Default::default()
-    };
+    let data = common::tumbling(60, 80, 1.0, 11);
+    let test = common::tumbling(20, 80, 1.0, 12);
+    let h = 20; // 2 s
+    let cfg = TrainConfig { horizon: h, epochs: 25, batch: 128, ..Default::default() };
     let t = std::time::Instant::now();
     let (dk, rep) = train(&data, &cfg, &mut |p| eprintln!("{p:?}")).unwrap();
     eprintln!("train {:.1} s, report {rep:?}", t.elapsed().as_secs_f64());
     let deep = deep_rmse(&dk, &test, h);
     let poly2 = edmd_rmse(&Polynomial::new(7, 2), &data, &test, h);
-    eprintln!("deep  {deep:.3e?}\npoly2 {poly2:.3e?}");
-    assert!(deep[h - 1] < poly2[h - 1], "deep {:?} vs poly2 {:?}", deep[h - 1], poly2[h - 1]);
+    eprintln!("deep  {deep:?}\npoly2 {poly2:?}");
+    // Polynomial EDMD is near-exact for one step (the dynamics are quadratic) but drifts; the
+    // multi-step-trained deep model must be better at the 2 s horizon.
+    assert!(deep[h - 1] < 0.8 * poly2[h - 1], "deep {:?} vs poly2 {:?}", deep[h - 1], poly2[h - 1]);
+    assert!(rep.valid_rmse[h - 1] < 0.8 * poly2[h - 1]);
 }
 
 #[test]
