@@ -1,10 +1,12 @@
 //! Run the accuracy study: `cargo run --release -p dkrrt-predictor --example study -- [small|medium|full] [--json]`.
 //!
 //! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
-//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `DUAL_RIDGE`, `SCENES` (comma-separated).
+//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `DUAL_RIDGE`, `SCENES`, `METHODS`
+//! (comma-separated), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
+//! the study trains one with `StudyConfig::deep_train` first).
 
 use dkrrt_predictor::eval::markdown_table;
-use dkrrt_predictor::{run_study, StudyConfig};
+use dkrrt_predictor::{run_study, Method, StudyConfig};
 
 fn env(name: &str) -> Option<f64> {
     std::env::var(name).ok().and_then(|v| v.parse().ok())
@@ -37,6 +39,15 @@ fn main() {
     }
     if let Ok(s) = std::env::var("SCENES") {
         cfg.scenes = s.split(',').map(str::to_string).collect();
+    }
+    if let Ok(s) = std::env::var("METHODS") {
+        cfg.methods = s.split(',').map(|m| Method::from_name(m).expect("unknown method")).collect();
+    }
+    if let Ok(s) = std::env::var("DEEP_MODEL") {
+        cfg.deep_model = Some(s.into());
+    }
+    if let Some(v) = env("RLS_A_MAXTRACE") {
+        cfg.predictor.rls_att.max_trace = v;
     }
     eprintln!(
         "study: {} train + {} held-out runs × {} s per scene, warm-up {} s, forecasts every {} s",

@@ -18,6 +18,7 @@
 use crate::filter::quat_angle;
 use crate::models::{FitConfig, Method, Models, Segment, TrainingSet};
 use crate::predictor::{DebrisPredictor, ForecastBuffer, PredictorConfig};
+use crate::training::{train_models, TrainModelsError, TrainOptions, TrainedModels};
 use dkrrt_debris::{
     DebrisWorld, ObsBuffer, Observation, Scene, SceneError, Sensor, SensorConfig, SensorError,
 };
@@ -38,6 +39,12 @@ pub enum EvalError {
     /// Sensor configuration.
     #[error(transparent)]
     Sensor(#[from] SensorError),
+    /// Deep model training.
+    #[error("deep model training: {0}")]
+    Train(#[from] TrainModelsError),
+    /// Deep model file.
+    #[error("deep model file: {0}")]
+    ModelFile(#[from] dkrrt_deep::ModelFileError),
     /// Model fit.
     #[error("fit of {method} on {scene}: {source}")]
     Fit {
@@ -98,6 +105,11 @@ pub struct StudyConfig {
     pub perturbation: f64,
     /// Master seed (training seeds `seed + i`, held-out seeds `seed + 1000 + i`).
     pub seed: u64,
+    /// Training of the deep attitude model for the deep methods (its data come from its own
+    /// seeds, disjoint from the study's runs), unless `deep_model` is given.
+    pub deep_train: TrainOptions,
+    /// Pre-trained model file ([`TrainedModels::load`]) for the deep methods: no training.
+    pub deep_model: Option<std::path::PathBuf>,
 }
 
 impl StudyConfig {
@@ -118,11 +130,13 @@ impl StudyConfig {
             predictor: PredictorConfig::default(),
             perturbation: 1.0,
             seed: 7,
+            deep_train: TrainOptions::default(),
+            deep_model: None,
         }
     }
-    /// Small version for tests (a few seconds in the dev profile).
+    /// Small version for tests (a few seconds in the dev profile; tiny deep training).
     pub fn small() -> Self {
-        Self::sized(2, 1, 12.0)
+        StudyConfig { deep_train: TrainOptions::tiny(), ..Self::sized(2, 1, 12.0) }
     }
     /// Medium version (README table).
     pub fn medium() -> Self {
@@ -340,8 +354,24 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Run the study. Rows ordered by scene, method, horizon.
+/// Run the study. Rows ordered by scene, method, horizon. The deep methods (if listed) use
+/// the model file `cfg.deep_model` or train one with `cfg.deep_train` first.
 pub fn run_study(cfg: &StudyConfig) -> Result<Vec<StudyRow>, EvalError> {
+    let deep = if cfg.methods.iter().any(|m| m.deep()) {
+        Some(match &cfg.deep_model {
+            Some(path) => TrainedModels::load(path)?,
+            None => train_models(&cfg.deep_train, &mut |_| {})?,
+        })
+    } else {
+        None
+    };
+    run_study_with(cfg, deep.as_ref())
+}
+
+/// [`run_study`] with an already trained / loaded deep model (`cfg.deep_train` and
+/// `cfg.deep_model` are ignored). Fails with [`EvalError::Fit`] if a deep method is listed
+/// and `deep` is `None`.
+pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result<Vec<StudyRow>, EvalError> {
     let mut rows = Vec::new();
     for (si, scene) in cfg.scenes.iter().enumerate() {
         let base = cfg.seed + 10_000 * si as u64;
@@ -360,11 +390,8 @@ pub fn run_study(cfg: &StudyConfig) -> Result<Vec<StudyRow>, EvalError> {
         fit.frame_rate = train.first().map_or(fit.frame_rate, |r| r.mean_motion);
         let ts = training_set(&train, fit.dt, fit.horizon, cfg.warmup, &cfg.predictor);
         for &method in &cfg.methods {
-            let models = Models::fit(method, &ts, &fit).map_err(|source| EvalError::Fit {
-                scene: scene.clone(),
-                method: method.name(),
-                source,
-            })?;
+            let models = Models::fit_with_deep(method, &ts, &fit, deep.map(|d| &d.attitude))
+                .map_err(|source| EvalError::Fit { scene: scene.clone(), method: method.name(), source })?;
             let mut errs = Errors::default();
             for rec in &test {
                 let mut pred = DebrisPredictor::new(models.clone(), cfg.predictor);

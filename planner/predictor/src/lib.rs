@@ -7,6 +7,8 @@
 //!   allocation-free forecasts into a caller-owned [`ForecastBuffer`].
 //! * [`models`]: the [`Method`]s of the study, their fits ([`Models::fit`]) and the roll-out
 //!   [`models::Engine`].
+//! * [`training`]: deep Koopman attitude model training on debris-world data
+//!   ([`train_models`]), model files ([`TrainedModels::save`] / [`TrainedModels::load`]).
 //! * [`eval`]: the accuracy study (training / held-out runs of the named scenes, median
 //!   position / attitude errors at fixed horizons).
 //!
@@ -20,6 +22,7 @@ pub mod eval;
 pub mod filter;
 pub mod models;
 pub mod predictor;
+pub mod training;
 
 pub use eval::{run_study, StudyConfig, StudyRow};
 pub use filter::{FilterConfig, TrackFilter};
@@ -28,3 +31,4 @@ pub use predictor::{
     DebrisPredictor, ForecastBuffer, GateStats, ObserveOutcome, PredictorConfig, RejectReason, TrackInfo,
     MAX_TRACKS,
 };
+pub use training::{train_models, TrainModelsError, TrainOptions, TrainedModels, ValidationRow};

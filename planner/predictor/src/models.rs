@@ -7,10 +7,11 @@
 //! with the quaternion renormalised every step.
 
 use crate::filter::quat_angle;
+use dkrrt_deep::{DeepKoopman, DeepLifting};
 use dkrrt_koopman::debris_state::{self, attitude_dictionary, nominal_rhs, N};
 use dkrrt_koopman::{
     fit_dual, fit_edmd, fit_generator, ConstantVelocity, DualVariant, ErrorBound, FitError, KoopmanModel,
-    Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Snapshots, StateConstraint, MAX_HORIZON,
+    Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Rollout, Snapshots, StateConstraint, MAX_HORIZON,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -30,11 +31,28 @@ pub enum Method {
     /// The paper's dual-data scheme (nominal CW + attitude-kinematics generator, correction
     /// `H` learned from trajectories with ridge), refined online per track by RLS.
     DualData,
+    /// Deep Koopman attitude model (`dkrrt-deep`: `φ(q, ω) = [q, ω, NN(q, ω)]`, trained on
+    /// simulated tumbling, linear roll-out in the lifted space) + the dual-data translation
+    /// model; fixed.
+    DeepKoopman,
+    /// [`Method::DeepKoopman`] refined online per track: RLS on all rows of the lifted
+    /// attitude model (targets `φ(x⁺)`) and on the translation state rows.
+    DeepKoopmanOnline,
 }
 
 impl Method {
     /// All methods of the study.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 7] = [
+        Method::ConstantVelocity,
+        Method::EdmdPoly,
+        Method::EdmdRbf,
+        Method::KoopmanOnline,
+        Method::DualData,
+        Method::DeepKoopman,
+        Method::DeepKoopmanOnline,
+    ];
+    /// The methods that need no trained deep model.
+    pub const CLASSIC: [Method; 5] = [
         Method::ConstantVelocity,
         Method::EdmdPoly,
         Method::EdmdRbf,
@@ -49,6 +67,8 @@ impl Method {
             Method::EdmdRbf => "edmd-rbf",
             Method::KoopmanOnline => "koopman-online",
             Method::DualData => "dual-data",
+            Method::DeepKoopman => "deep-koopman",
+            Method::DeepKoopmanOnline => "deep-koopman-online",
         }
     }
     /// Parse a [`Method::name`].
@@ -57,7 +77,11 @@ impl Method {
     }
     /// Whether the models are refined online by RLS.
     pub fn online(&self) -> bool {
-        matches!(self, Method::KoopmanOnline | Method::DualData)
+        matches!(self, Method::KoopmanOnline | Method::DualData | Method::DeepKoopmanOnline)
+    }
+    /// Whether the method needs a trained deep Koopman model ([`Models::fit_with_deep`]).
+    pub fn deep(&self) -> bool {
+        matches!(self, Method::DeepKoopman | Method::DeepKoopmanOnline)
     }
     /// Whether the method uses Koopman models (everything but the baseline).
     pub fn koopman(&self) -> bool {
@@ -66,12 +90,14 @@ impl Method {
 }
 
 /// Attitude dictionary (closed set, so the lifting is `Clone` and needs no trait object).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub enum AttitudeLifting {
     /// Polynomial (e.g. [`attitude_dictionary`]).
     Poly(Polynomial),
     /// Radial basis functions.
     Rbf(Rbf),
+    /// Learned MLP lifting of `dkrrt-deep` (boxed: fixed parameter arrays).
+    Deep(Box<DeepLifting>),
 }
 
 impl Lifting for AttitudeLifting {
@@ -79,12 +105,14 @@ impl Lifting for AttitudeLifting {
         match self {
             AttitudeLifting::Poly(l) => l.state_dim(),
             AttitudeLifting::Rbf(l) => l.state_dim(),
+            AttitudeLifting::Deep(l) => l.state_dim(),
         }
     }
     fn dim(&self) -> usize {
         match self {
             AttitudeLifting::Poly(l) => l.dim(),
             AttitudeLifting::Rbf(l) => l.dim(),
+            AttitudeLifting::Deep(l) => l.dim(),
         }
     }
     #[inline]
@@ -92,12 +120,14 @@ impl Lifting for AttitudeLifting {
         match self {
             AttitudeLifting::Poly(l) => l.lift(x, out),
             AttitudeLifting::Rbf(l) => l.lift(x, out),
+            AttitudeLifting::Deep(l) => l.lift(x, out),
         }
     }
     fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
         match self {
             AttitudeLifting::Poly(l) => l.lift_derivative(x, xdot, out),
             AttitudeLifting::Rbf(l) => l.lift_derivative(x, xdot, out),
+            AttitudeLifting::Deep(l) => l.lift_derivative(x, xdot, out),
         }
     }
 }
@@ -202,6 +232,10 @@ pub struct Models {
     pub trans: KoopmanModel,
     /// Attitude model (n = 7).
     pub att: KoopmanModel,
+    /// Roll-out of the attitude model: [`Rollout::Relift`] for the dictionaries (EDMD /
+    /// dual-data), [`Rollout::Linear`] for the deep model (trained for lifted-linear
+    /// multi-step prediction).
+    pub att_rollout: Rollout,
     /// Position error bound [m] per step.
     pub pos_bound: ErrorBound,
     /// Attitude error bound [rad] per step.
@@ -228,14 +262,29 @@ impl Models {
             att: KoopmanModel::zeros(7, att_lift.dim(), 0, dt),
             trans_lift,
             att_lift,
+            att_rollout: Rollout::Relift,
             pos_bound: ErrorBound::constant(horizon, dt, pos_radius),
             att_bound: ErrorBound::constant(horizon, dt, att_radius),
         }
     }
 
     /// Fit `method` on `data` (grid step must equal `cfg.dt`). Error bounds from validation
-    /// forecasts on the same data against the true states.
+    /// forecasts on the same data against the true states. Deep methods need
+    /// [`Models::fit_with_deep`].
     pub fn fit(method: Method, data: &TrainingSet, cfg: &FitConfig) -> Result<Models, FitError> {
+        Self::fit_with_deep(method, data, cfg, None)
+    }
+
+    /// [`Models::fit`] for every method: the deep methods take their attitude model from
+    /// `deep` (a trained `dkrrt-deep` model on the 7-d state `(q, ω)`, e.g.
+    /// [`crate::training::TrainedModels::attitude`]) and fit the dual-data translation model
+    /// on `data`; `deep` is ignored by the other methods.
+    pub fn fit_with_deep(
+        method: Method,
+        data: &TrainingSet,
+        cfg: &FitConfig,
+        deep: Option<&DeepKoopman>,
+    ) -> Result<Models, FitError> {
         assert!((1..=MAX_HORIZON).contains(&cfg.horizon), "horizon must be in 1..=128");
         if (data.dt - cfg.dt).abs() > 1e-9 {
             return Err(FitError::Dim(format!("training grid dt {} != model dt {}", data.dt, cfg.dt)));
@@ -289,6 +338,30 @@ impl Models {
                 let rbf = Rbf::new(7, centres, RbfKind::Gaussian { sigma: cfg.rbf_sigma }).with_scale(&scale);
                 m.att_lift = AttitudeLifting::Rbf(rbf);
                 m.att = fit_edmd(&m.att_lift, &sa, cfg.dt, &opts)?.0;
+            }
+            Method::DeepKoopman | Method::DeepKoopmanOnline => {
+                let Some(dk) = deep else {
+                    return Err(FitError::Dim(format!(
+                        "{} needs a trained deep Koopman model (training::train_models or TrainedModels::load)",
+                        method.name()
+                    )));
+                };
+                if dk.model.n != 7 || dk.lifting.state_dim() != 7 || dk.model.m != 0 {
+                    return Err(FitError::Dim(format!(
+                        "deep model has state dimension {} (inputs {}), the attitude model needs 7 (q, ω) and none",
+                        dk.model.n, dk.model.m
+                    )));
+                }
+                if (dk.model.dt - cfg.dt).abs() > 1e-9 {
+                    return Err(FitError::Dim(format!(
+                        "deep model dt {} != model dt {}",
+                        dk.model.dt, cfg.dt
+                    )));
+                }
+                m.trans = fit_dual_translation(&m.trans_lift, &st, cfg, &mut rng)?;
+                m.att_lift = AttitudeLifting::Deep(Box::new(dk.lifting.clone()));
+                m.att = dk.model.clone();
+                m.att_rollout = Rollout::Linear;
             }
             Method::DualData => {
                 let n = cfg.frame_rate;
@@ -394,12 +467,50 @@ fn state_rows_times(cols: &[f64], z: &[f64]) -> [f64; ROWS] {
     a0
 }
 
+/// Dual-data translation model (nominal CW generator from collocation points around the
+/// training states + ridge correction), as in [`Method::DualData`].
+fn fit_dual_translation(
+    lift: &Polynomial,
+    st: &Snapshots,
+    cfg: &FitConfig,
+    rng: &mut SmallRng,
+) -> Result<KoopmanModel, FitError> {
+    let nn = st.len();
+    let opts = LstsqOptions { rel_tol: cfg.rel_tol, ..Default::default() };
+    let ridge = LstsqOptions { rel_tol: cfg.rel_tol, ridge: cfg.dual_ridge * nn as f64, max_rank: None };
+    let nc = cfg.collocation.max(50);
+    let mut xt = Vec::with_capacity(nc * 6);
+    for _ in 0..nc {
+        let k = rng.random_range(0..nn);
+        for i in 0..6 {
+            xt.push(st.x[k * 6 + i] + 0.1 * (rng.random::<f64>() - 0.5));
+        }
+    }
+    let w = cfg.frame_rate;
+    let gt = fit_generator(lift, &xt, &[], 0, |x, _, dx| nominal_rhs(w, x, dx), &opts)?;
+    Ok(fit_dual(lift, &gt, st, cfg.dt, DualVariant::Corrected, &ridge)?.model)
+}
+
+/// `out[..p] = A z` for a column-major `p × p` matrix (contiguous column axpys; vectorises).
+#[inline(always)]
+fn lifted_step(ab: &[f64], p: usize, z: &[f64], out: &mut [f64]) {
+    let out = &mut out[..p];
+    out.iter_mut().for_each(|o| *o = 0.0);
+    for (col, &zj) in ab[..p * p].chunks_exact(p).zip(&z[..p]) {
+        for (o, a) in out.iter_mut().zip(col) {
+            *o += a * zj;
+        }
+    }
+}
+
 /// Allocation-free roll-out of a 13-state with one method (scratch preallocated).
 ///
-/// Koopman methods roll out both models in relift mode, `x⁺ = (A φ(x))[..n]`, fused in one
-/// loop over the steps: the `n` state rows of each model are copied once per call into
-/// padded columns (`8` entries), so a step is one lift plus `p` 8-wide multiply-adds per model,
-/// then the quaternion is renormalised.
+/// Koopman methods roll out both models fused in one loop over the steps. Relift mode,
+/// `x⁺ = (A φ(x))[..n]` (translation; attitude of the dictionary methods): the `n` state rows
+/// are copied once per call into padded columns (`8` entries), so a step is one lift plus `p`
+/// 8-wide multiply-adds. Linear mode (deep attitude model): `z⁺ = A z` from `z₀ = φ(x₀)`,
+/// decoded `x = z[..7]`. The decoded quaternion is renormalised every step (the lifted
+/// state `z` is left as is).
 ///
 /// Trust region: a Koopman roll-out started outside the training distribution (e.g. a
 /// noisy rate estimate of a fresh track) can diverge polynomially. From the first step whose
@@ -412,6 +523,7 @@ pub struct Engine {
     ca: Vec<f64>,
     zt: Vec<f64>,
     za: Vec<f64>,
+    zn: Vec<f64>,
     /// Trust region: maximum speed [m/s].
     pub max_speed: f64,
     /// Trust region: maximum spin [rad/s].
@@ -429,6 +541,7 @@ impl Engine {
             ca: vec![0.0; pa * ROWS],
             zt: vec![0.0; pt],
             za: vec![0.0; pa],
+            zn: vec![0.0; pa],
             max_speed: 5.0,
             max_spin: 15.0,
             fallbacks: 0,
@@ -447,28 +560,48 @@ impl Engine {
     unsafe fn roll_avx2(
         &mut self,
         models: &Models,
+        att: &KoopmanModel,
         x0: &[f64],
         pt: usize,
-        pa: usize,
         out: &mut [f64],
     ) -> Option<usize> {
-        self.roll(models, x0, pt, pa, out)
+        self.roll(models, att, x0, pt, out)
     }
 
-    /// The fused relift loop over `out.len() / 13` steps; returns the first untrusted step.
+    /// The fused roll-out loop over `out.len() / 13` steps; returns the first untrusted step.
+    /// Translation: relift with the state rows in `ct`. Attitude: relift with the state rows
+    /// in `ca`, or (deep model) linear in the lifted space with the full `att` matrix.
     #[inline(always)]
-    fn roll(&mut self, models: &Models, x0: &[f64], pt: usize, pa: usize, out: &mut [f64]) -> Option<usize> {
+    fn roll(
+        &mut self,
+        models: &Models,
+        att: &KoopmanModel,
+        x0: &[f64],
+        pt: usize,
+        out: &mut [f64],
+    ) -> Option<usize> {
+        let pa = att.p;
+        let linear = models.att_rollout == Rollout::Linear;
         let mut xt = [0.0; 6];
         xt.copy_from_slice(&x0[debris_state::TRANS]);
         let mut xa = [0.0; 7];
         xa.copy_from_slice(&x0[debris_state::ROT]);
+        if linear {
+            models.att_lift.lift(&xa, &mut self.za);
+        }
         for (k, o) in out.chunks_exact_mut(N).enumerate() {
             models.trans_lift.lift(&xt, &mut self.zt);
             let a = state_rows_times(&self.ct, &self.zt[..pt]);
             xt.copy_from_slice(&a[..6]);
-            models.att_lift.lift(&xa, &mut self.za);
-            let b = state_rows_times(&self.ca, &self.za[..pa]);
-            xa.copy_from_slice(&b[..7]);
+            if linear {
+                lifted_step(&att.ab, pa, &self.za, &mut self.zn);
+                std::mem::swap(&mut self.za, &mut self.zn);
+                xa.copy_from_slice(&self.za[..7]);
+            } else {
+                models.att_lift.lift(&xa, &mut self.za);
+                let b = state_rows_times(&self.ca, &self.za[..pa]);
+                xa.copy_from_slice(&b[..7]);
+            }
             StateConstraint::UnitQuaternion { at: 0 }.apply(&mut xa);
             o[..6].copy_from_slice(&xt);
             o[6..].copy_from_slice(&xa);
@@ -498,18 +631,23 @@ impl Engine {
         }
         let (pt, pa) = (trans.p, att.p);
         assert!(trans.n == 6 && att.n == 7 && trans.m == 0 && att.m == 0, "Engine: unexpected model shape");
-        assert!(self.ct.len() >= pt * ROWS && self.ca.len() >= pa * ROWS, "Engine: scratch too small");
+        assert!(
+            self.ct.len() >= pt * ROWS && self.ca.len() >= pa * ROWS && self.zn.len() >= pa,
+            "Engine: scratch too small"
+        );
         load_state_rows(trans, &mut self.ct);
-        load_state_rows(att, &mut self.ca);
+        if models.att_rollout == Rollout::Relift {
+            load_state_rows(att, &mut self.ca);
+        }
         #[cfg(target_arch = "x86_64")]
         let bad = if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked at run time).
-            unsafe { self.roll_avx2(models, x0, pt, pa, out) }
+            unsafe { self.roll_avx2(models, att, x0, pt, out) }
         } else {
-            self.roll(models, x0, pt, pa, out)
+            self.roll(models, att, x0, pt, out)
         };
         #[cfg(not(target_arch = "x86_64"))]
-        let bad = self.roll(models, x0, pt, pa, out);
+        let bad = self.roll(models, att, x0, pt, out);
         if let Some(bad) = bad {
             self.fallbacks += 1;
             let mut start = [0.0; N];

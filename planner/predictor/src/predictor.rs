@@ -6,7 +6,7 @@ use crate::filter::{quat_angle, FilterConfig, TrackFilter};
 use crate::models::{Engine, Method, Models};
 use dkrrt_debris::Observation;
 use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, ROT, TRANS};
-use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig};
+use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig, Rollout};
 use serde::Serialize;
 
 /// Maximum number of tracks (= debris capacity of the world).
@@ -265,6 +265,7 @@ pub struct DebrisPredictor {
     engine: Engine,
     phi_t: Vec<f64>,
     phi_a: Vec<f64>,
+    phi_a_next: Vec<f64>,
     t_latest: f64,
 }
 
@@ -296,7 +297,13 @@ impl DebrisPredictor {
             trans: models.trans.clone(),
             att: models.att.clone(),
             rls_t: Rls::for_model_state_rows(&models.trans, cfg.rls_trans),
-            rls_a: Rls::for_model_state_rows(&models.att, cfg.rls_att),
+            // Relift models refine the state rows; the deep model (linear lifted roll-out)
+            // refines all rows towards φ(x⁺) so the multi-step lifted roll-out adapts too.
+            rls_a: if models.att_rollout == Rollout::Linear {
+                Rls::for_model(&models.att, cfg.rls_att)
+            } else {
+                Rls::for_model_state_rows(&models.att, cfg.rls_att)
+            },
             pos_bound: models.pos_bound.clone(),
             att_bound: models.att_bound.clone(),
             last_event_t: [f64::NEG_INFINITY; 2],
@@ -312,6 +319,7 @@ impl DebrisPredictor {
             },
             phi_t: vec![0.0; models.trans.p + 8],
             phi_a: vec![0.0; models.att.p + 8],
+            phi_a_next: vec![0.0; models.att.p + 8],
             tracks: vec![slot; MAX_TRACKS],
             models,
             cfg,
@@ -532,7 +540,12 @@ impl DebrisPredictor {
                 let mut ya = [0.0; 7];
                 ya.copy_from_slice(&xn[ROT]);
                 align_quaternion(&mut ya[0..4], &xp[QUAT]);
-                tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &ya);
+                if m.att_rollout == Rollout::Linear {
+                    m.att_lift.lift(&ya, &mut self.phi_a_next);
+                    tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &self.phi_a_next[..m.att.p]);
+                } else {
+                    tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &ya);
+                }
                 // A diverged refinement must never poison forecasts: fall back to the fit.
                 if !tr.trans.ab.iter().all(|v| v.is_finite()) {
                     tr.trans.ab.copy_from_slice(&m.trans.ab);
