@@ -2,7 +2,9 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dkrrt_debris::{RandomSceneParams, Scene, SensorConfig};
+use dkrrt_deep::TrainConfig;
 use dkrrt_predictor::eval::{record, training_set, Recording};
+use dkrrt_predictor::training::{train_models, TrainOptions, TrainedModels};
 use dkrrt_predictor::{DebrisPredictor, FitConfig, ForecastBuffer, Method, Models, PredictorConfig};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -13,23 +15,31 @@ fn run(seed: u64, duration: f64) -> Recording {
     record(&scene, SensorConfig::default(), duration, 0.01, seed).unwrap()
 }
 
-fn models(method: Method, train: &[Recording]) -> Models {
+fn models(method: Method, train: &[Recording], deep: &TrainedModels) -> Models {
     let fit = FitConfig { frame_rate: train[0].mean_motion, ..Default::default() };
     if method == Method::ConstantVelocity {
         return Models::constant_velocity(fit.dt, fit.horizon, fit.frame_rate, 0.05, 0.05);
     }
     let ts = training_set(train, fit.dt, fit.horizon, 1.0, &PredictorConfig::default());
-    Models::fit(method, &ts, &fit).unwrap()
+    Models::fit_with_deep(method, &ts, &fit, Some(&deep.attitude)).unwrap()
 }
 
 fn bench(c: &mut Criterion) {
     let train = vec![run(1, 10.0)];
     let test = run(2, 60.0);
+    // Deep model: the default network size (p = 7 + 16), few epochs (cost depends on the
+    // sizes only); `DEEP_MODEL=FILE` benchmarks a trained model file instead.
+    let deep = match std::env::var("DEEP_MODEL") {
+        Ok(f) => TrainedModels::load(std::path::Path::new(&f)).unwrap(),
+        Err(_) => {
+            let d = TrainOptions::default().deep;
+            let o = TrainOptions { deep: TrainConfig { epochs: 2, ..d }, ..TrainOptions::tiny() };
+            train_models(&o, &mut |_| {}).unwrap()
+        }
+    };
     let mut g = c.benchmark_group("predictor");
-    for method in
-        [Method::ConstantVelocity, Method::EdmdPoly, Method::EdmdRbf, Method::KoopmanOnline, Method::DualData]
-    {
-        let m = models(method, &train);
+    for method in Method::ALL {
+        let m = models(method, &train, &deep);
         let (p_t, p_a) = (m.trans.p, m.att.p);
         let mut pr = DebrisPredictor::new(m.clone(), PredictorConfig::default());
         let warm = test.obs.iter().position(|o| o.t >= 3.0).unwrap();

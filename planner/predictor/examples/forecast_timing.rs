@@ -26,14 +26,19 @@ fn main() {
     let fit = FitConfig { frame_rate: train[0].mean_motion, ..Default::default() };
     let ts = training_set(&train, fit.dt, fit.horizon, 1.0, &PredictorConfig::default());
     let only: Vec<String> = std::env::args().skip(1).collect();
+    // Deep methods: `DEEP_MODEL=FILE` (a trained model file); skipped without it.
+    let deep = std::env::var("DEEP_MODEL")
+        .ok()
+        .map(|f| dkrrt_predictor::TrainedModels::load(std::path::Path::new(&f)).unwrap());
     for method in Method::ALL {
-        if !only.is_empty() && !only.iter().any(|o| o == method.name()) {
+        if (!only.is_empty() && !only.iter().any(|o| o == method.name())) || (method.deep() && deep.is_none())
+        {
             continue;
         }
         let m = if method == Method::ConstantVelocity {
             Models::constant_velocity(fit.dt, fit.horizon, fit.frame_rate, 0.05, 0.05)
         } else {
-            Models::fit(method, &ts, &fit).unwrap()
+            Models::fit_with_deep(method, &ts, &fit, deep.as_ref().map(|d| &d.attitude)).unwrap()
         };
         let mut pr = DebrisPredictor::new(m, PredictorConfig::default());
         for o in test.obs.iter().filter(|o| o.t < 3.0) {

@@ -1,8 +1,8 @@
 //! Run the accuracy study: `cargo run --release -p dkrrt-predictor --example study -- [small|medium|full] [--json]`.
 //!
 //! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
-//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `DUAL_RIDGE`, `SCENES`, `METHODS`
-//! (comma-separated), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
+//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
+//! (comma-separated), `DEEP_RELIFT` (deep attitude model rolled out in relift mode), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
 //! the study trains one with `StudyConfig::deep_train` first).
 
 use dkrrt_predictor::eval::markdown_table;
@@ -43,8 +43,17 @@ fn main() {
     if let Ok(s) = std::env::var("METHODS") {
         cfg.methods = s.split(',').map(|m| Method::from_name(m).expect("unknown method")).collect();
     }
+    if std::env::var("DEEP_RELIFT").is_ok() {
+        cfg.fit.deep_rollout = dkrrt_koopman::Rollout::Relift;
+    }
     if let Ok(s) = std::env::var("DEEP_MODEL") {
         cfg.deep_model = Some(s.into());
+    }
+    if let Some(v) = env("RLS_D_P0") {
+        cfg.predictor.rls_att_deep.p0 = v;
+    }
+    if let Some(v) = env("RLS_D_LAMBDA") {
+        cfg.predictor.rls_att_deep.lambda = v;
     }
     if let Some(v) = env("RLS_A_MAXTRACE") {
         cfg.predictor.rls_att.max_trace = v;

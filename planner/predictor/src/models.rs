@@ -192,6 +192,11 @@ pub struct FitConfig {
     pub bound_stride: usize,
     /// Seed (RBF centres, collocation points).
     pub seed: u64,
+    /// Attitude roll-out of the deep methods: [`Rollout::Linear`] (lifted-linear, what the
+    /// deep model is trained for; online RLS on all rows towards `φ(x⁺)`) or
+    /// [`Rollout::Relift`] (`x⁺ = (A φ(x))[..7]`, RLS on the state rows).
+    #[serde(skip)]
+    pub deep_rollout: Rollout,
 }
 
 impl Default for FitConfig {
@@ -209,6 +214,7 @@ impl Default for FitConfig {
             bound_margin: 1.2,
             bound_stride: 5,
             seed: 1,
+            deep_rollout: Rollout::Linear,
         }
     }
 }
@@ -361,7 +367,7 @@ impl Models {
                 m.trans = fit_dual_translation(&m.trans_lift, &st, cfg, &mut rng)?;
                 m.att_lift = AttitudeLifting::Deep(Box::new(dk.lifting.clone()));
                 m.att = dk.model.clone();
-                m.att_rollout = Rollout::Linear;
+                m.att_rollout = cfg.deep_rollout;
             }
             Method::DualData => {
                 let n = cfg.frame_rate;

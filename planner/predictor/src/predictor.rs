@@ -39,6 +39,8 @@ pub struct PredictorConfig {
     pub rls_trans: RlsConfig,
     /// RLS of the attitude model (state rows).
     pub rls_att: RlsConfig,
+    /// RLS of the deep attitude model in lifted-linear roll-out (all rows, targets `φ(x⁺)`).
+    pub rls_att_deep: RlsConfig,
     /// Event: one-step residual > `event_factor · radius(1)` + noise allowance.
     pub event_factor: f64,
     /// Event: position noise allowance of the one-step residual (raw observation) [m].
@@ -66,6 +68,7 @@ impl Default for PredictorConfig {
             pair_tolerance: 0.005,
             rls_trans: RlsConfig { lambda: 0.999, p0: 1e-5, max_trace: 1e6 },
             rls_att: RlsConfig { lambda: 0.995, p0: 1.0, max_trace: 1e6 },
+            rls_att_deep: RlsConfig { lambda: 0.997, p0: 100.0, max_trace: 1e8 },
             event_factor: 3.0,
             event_pos_noise: 0.05,
             event_att_noise: 0.08,
@@ -300,7 +303,7 @@ impl DebrisPredictor {
             // Relift models refine the state rows; the deep model (linear lifted roll-out)
             // refines all rows towards φ(x⁺) so the multi-step lifted roll-out adapts too.
             rls_a: if models.att_rollout == Rollout::Linear {
-                Rls::for_model(&models.att, cfg.rls_att)
+                Rls::for_model(&models.att, cfg.rls_att_deep)
             } else {
                 Rls::for_model_state_rows(&models.att, cfg.rls_att)
             },
