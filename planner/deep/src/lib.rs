@@ -22,7 +22,7 @@ pub use file::{
     from_bytes, load_model, load_models, save_models, select, to_bytes, ModelFileError, FORMAT_VERSION, MAGIC,
 };
 pub use lifting::{
-    param_count, DeepLifting, LiftingError, MAX_EXTRA, MAX_HIDDEN, MAX_IN, MAX_LAYERS, MAX_PARAMS,
+    param_count, tanh_fast, DeepLifting, LiftingError, MAX_EXTRA, MAX_HIDDEN, MAX_IN, MAX_LAYERS, MAX_PARAMS,
 };
 pub use train::{rmse_per_step, train, Progress, TrainConfig, TrainData, TrainError, TrainReport};
 

@@ -202,10 +202,73 @@ fn dense(params: &[f64], off: usize, x: &[f64], out: &mut [f64], act: bool) -> u
     let w = &params[off..off + no * ni];
     let b = &params[off + no * ni..off + no * ni + no];
     for ((o, row), bi) in out.iter_mut().zip(w.chunks_exact(ni)).zip(b) {
-        let v = dot(row, x) + bi;
-        *o = if act { v.tanh() } else { v };
+        *o = dot(row, x) + bi;
+    }
+    if act {
+        // Separate branch-free pass so it vectorises.
+        for o in out.iter_mut() {
+            *o = tanh_fast(*o);
+        }
     }
     off + no * (ni + 1)
+}
+
+/// `exp(y)` for `y ≤ 0` (clamped at −700), branch-free: `y = k ln 2 + r`, `|r| ≤ ln 2 / 2`,
+/// degree-13 Taylor polynomial for `e^r` (truncation < 2e-16), `2^k` by exponent bits.
+#[inline(always)]
+fn exp_nonpos(y: f64) -> f64 {
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    const LN2_HI: f64 = 6.931_471_803_691_238_164_9e-1;
+    const LN2_LO: f64 = 1.908_214_929_270_587_700_0e-10;
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52: adding it rounds to an integer
+    let y = y.max(-700.0);
+    let t = y * LOG2E + MAGIC;
+    let k = t - MAGIC;
+    let ki = (t.to_bits() as i64).wrapping_sub(MAGIC.to_bits() as i64);
+    let r = (y - k * LN2_HI) - k * LN2_LO;
+    let mut p = 1.0 / 6_227_020_800.0; // 1/13!
+    for c in [
+        1.0 / 479_001_600.0,
+        1.0 / 39_916_800.0,
+        1.0 / 3_628_800.0,
+        1.0 / 362_880.0,
+        1.0 / 40_320.0,
+        1.0 / 5_040.0,
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+        1.0,
+        1.0,
+    ] {
+        p = p * r + c;
+    }
+    p * f64::from_bits(((ki + 1023) as u64) << 52)
+}
+
+/// `tanh(x)` to within a few ulp of `f64::tanh`, branch-free (vectorisable):
+/// `(1 − e)/(1 + e)` with `e = exp(−2|x|)`, odd Taylor series for `|x| < 1/16`.
+#[inline(always)]
+pub fn tanh_fast(x: f64) -> f64 {
+    let a = x.abs();
+    let e = exp_nonpos(-2.0 * a);
+    let big = (1.0 - e) / (1.0 + e);
+    let x2 = a * a;
+    let small = a
+        * (1.0
+            + x2 * (-1.0 / 3.0
+                + x2 * (2.0 / 15.0
+                    + x2 * (-17.0 / 315.0 + x2 * (62.0 / 2835.0 + x2 * (-1382.0 / 155_925.0))))));
+    // NaN fails both comparisons and is passed through.
+    let t = if a < 0.0625 {
+        small
+    } else if a >= 0.0625 {
+        big
+    } else {
+        a
+    };
+    t.copysign(x)
 }
 
 impl Lifting for DeepLifting {

@@ -6,7 +6,8 @@
 //!   `extra − 1` are MLP outputs.
 //! * Loss on a window `x_0 … x_H`: `z_0 = φ(x_0)`, `z_{k+1} = K z_k`,
 //!   `L = 1/H Σ_k mean((Π z_k − x̃_k)²) + w_lin · 1/H Σ_k mean((z_k − φ(x_k))²_{extra})`
-//!   (multi-step prediction in state space plus lifted-space consistency).
+//!   (multi-step prediction in state space plus optional lifted-space consistency,
+//!   `w_lin =` [`LIFT_WEIGHT`] `= 0`).
 //! * `K` is re-solved by ridge least squares (faer SVD via `dkrrt_koopman::linalg::lstsq`) on all
 //!   one-step training pairs lifted with the current network every `resolve_every` epochs
 //!   (and before the first epoch); between re-solves Adam trains the network **and** `K` on the
@@ -26,7 +27,10 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use std::time::Instant;
 
-/// Weight of the lifted-space consistency term.
+/// Weight of the optional lifted-space consistency term `mean((K̃ᵏ φ(x_0) − φ(x_k))²)`.
+/// 0 (off): on the tumbling rigid body a weight of 0.1 gave the same validation error
+/// (RMSE at 2 s 0.139 vs 0.143) but made training 8× slower (the MLP then runs on all `H + 1`
+/// states of every window instead of only `x_0`).
 pub const LIFT_WEIGHT: f64 = 0.0;
 /// Validation windows evaluated per epoch at most (a fixed, evenly spaced subset).
 pub const MAX_VALID_WINDOWS_PER_EPOCH: usize = 4096;

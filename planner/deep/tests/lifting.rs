@@ -95,6 +95,24 @@ fn lift_and_forecast_allocate_nothing() {
 }
 
 #[test]
+fn fast_tanh_matches_std_tanh() {
+    let mut worst: f64 = 0.0;
+    let mut x: f64 = -40.0;
+    while x <= 40.0 {
+        let (a, b) = (tanh_fast(x), x.tanh());
+        let rel = (a - b).abs() / b.abs().max(f64::MIN_POSITIVE);
+        worst = worst.max(if b == 0.0 { (a - b).abs() } else { rel });
+        x += 0.000_731;
+    }
+    for x in [0.0f64, -0.0, 1e-300, 1e-9, 0.0625, -0.0625, 0.06249999, 710.0, -1e6, f64::INFINITY] {
+        let (a, b) = (tanh_fast(x), x.tanh());
+        assert!((a - b).abs() <= 1e-15 * b.abs(), "{x}: {a} vs {b}");
+    }
+    assert!(tanh_fast(f64::NAN).is_nan());
+    assert!(worst < 1e-14, "worst relative error {worst:e}");
+}
+
+#[test]
 fn constructor_rejects_bad_dimensions_and_values() {
     let ok = |n, h, l, e| {
         DeepLifting::new(n, h, l, e, &vec![0.0; n], &vec![1.0; n], &vec![0.0; param_count(n, h, l, e)])
