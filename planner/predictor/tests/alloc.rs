@@ -2,9 +2,10 @@
 
 mod common;
 
-use common::fitted;
+use common::{fitted, fitted_deep};
 use dkrrt_debris::SensorConfig;
 use dkrrt_predictor::eval::{perturbed_scene, record};
+use dkrrt_predictor::training::{train_models, TrainOptions};
 use dkrrt_predictor::{DebrisPredictor, ForecastBuffer, Method, Models, PredictorConfig};
 use dkrrt_rt::alloc_count::{count, CountingAlloc};
 
@@ -16,9 +17,18 @@ fn observe_and_forecast_do_not_allocate() {
     // Tumbling-rods with its events: impulse at 10 s, split at 15 s (new track, id 100).
     let scene = perturbed_scene("tumbling-rods", 3, 1.0).unwrap();
     let rec = record(&scene, SensorConfig::default(), 17.0, 0.01, 3).unwrap();
-    for method in [Method::ConstantVelocity, Method::EdmdRbf, Method::KoopmanOnline, Method::DualData] {
+    let deep = train_models(&TrainOptions::tiny(), &mut |_| {}).unwrap();
+    for method in [
+        Method::ConstantVelocity,
+        Method::EdmdRbf,
+        Method::KoopmanOnline,
+        Method::DualData,
+        Method::DeepKoopmanOnline,
+    ] {
         let models = if method == Method::ConstantVelocity {
             Models::constant_velocity(0.1, 40, rec.mean_motion, 0.05, 0.05)
+        } else if method.deep() {
+            fitted_deep(method, &deep.attitude)
         } else {
             fitted(method)
         };
