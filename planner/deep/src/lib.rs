@@ -11,7 +11,8 @@
 //! * [`file`]: versioned, checksummed model files holding several named models
 //!   ([`save_models`], [`load_models`], [`to_bytes`], [`from_bytes`]); format in the README.
 
-#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+// Negated comparisons deliberately treat NaN as invalid.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord, clippy::nonminimal_bool)]
 
 pub mod file;
 pub mod lifting;

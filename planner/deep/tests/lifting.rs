@@ -1,4 +1,5 @@
 //! Fixed-array inference: equals candle's forward pass, allocates nothing.
+#![allow(clippy::needless_range_loop)]
 
 mod common;
 
