@@ -497,16 +497,54 @@ fn fit_dual_translation(
     Ok(fit_dual(lift, &gt, st, cfg.dt, DualVariant::Corrected, &ridge)?.model)
 }
 
-/// `out[..p] = A z` for a column-major `p × p` matrix (contiguous column axpys; vectorises).
-#[inline(always)]
-fn lifted_step(ab: &[f64], p: usize, z: &[f64], out: &mut [f64]) {
-    let out = &mut out[..p];
-    out.iter_mut().for_each(|o| *o = 0.0);
-    for (col, &zj) in ab[..p * p].chunks_exact(p).zip(&z[..p]) {
-        for (o, a) in out.iter_mut().zip(col) {
-            *o += a * zj;
+/// Copy a column-major `p × p` matrix into columns padded to `pp = p` rounded up to 4 (zero
+/// rows), so the lifted step runs on whole 4-wide vectors. Returns `pp`.
+fn load_lifted(model: &KoopmanModel, dst: &mut [f64]) -> usize {
+    let p = model.p;
+    let pp = p.next_multiple_of(4);
+    for (j, d) in dst[..p * pp].chunks_exact_mut(pp).enumerate() {
+        for i in 0..pp {
+            d[i] = if i < p { model.ab[j * p + i] } else { 0.0 };
         }
     }
+    pp
+}
+
+/// `out[..pp] = A z` with `A` as written by [`load_lifted`] (padding rows stay 0; the sums run
+/// over `j` in order, bit-identical to the unpadded column axpys). Common padded sizes use a
+/// fixed-size accumulator that stays in registers.
+#[inline(always)]
+fn lifted_step(a: &[f64], p: usize, pp: usize, z: &[f64], out: &mut [f64]) {
+    match pp {
+        8 => lifted_step_n::<8>(a, p, z, out),
+        12 => lifted_step_n::<12>(a, p, z, out),
+        16 => lifted_step_n::<16>(a, p, z, out),
+        20 => lifted_step_n::<20>(a, p, z, out),
+        24 => lifted_step_n::<24>(a, p, z, out),
+        28 => lifted_step_n::<28>(a, p, z, out),
+        32 => lifted_step_n::<32>(a, p, z, out),
+        _ => {
+            let out = &mut out[..pp];
+            out.iter_mut().for_each(|o| *o = 0.0);
+            for (col, &zj) in a[..p * pp].chunks_exact(pp).zip(&z[..p]) {
+                for (o, c) in out.iter_mut().zip(col) {
+                    *o += c * zj;
+                }
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn lifted_step_n<const PP: usize>(a: &[f64], p: usize, z: &[f64], out: &mut [f64]) {
+    let mut acc = [0.0; PP];
+    for (col, &zj) in a[..p * PP].chunks_exact(PP).zip(&z[..p]) {
+        let col: &[f64; PP] = col.try_into().unwrap();
+        for i in 0..PP {
+            acc[i] += col[i] * zj;
+        }
+    }
+    out[..PP].copy_from_slice(&acc);
 }
 
 /// Allocation-free roll-out of a 13-state with one method (scratch preallocated).
@@ -530,6 +568,9 @@ pub struct Engine {
     zt: Vec<f64>,
     za: Vec<f64>,
     zn: Vec<f64>,
+    /// Lifted matrix of a linear attitude roll-out, columns padded to `pp` rows.
+    ka: Vec<f64>,
+    pp: usize,
     /// Trust region: maximum speed [m/s].
     pub max_speed: f64,
     /// Trust region: maximum spin [rad/s].
@@ -546,8 +587,14 @@ impl Engine {
             ct: vec![0.0; pt * ROWS],
             ca: vec![0.0; pa * ROWS],
             zt: vec![0.0; pt],
-            za: vec![0.0; pa],
-            zn: vec![0.0; pa],
+            za: vec![0.0; pa.next_multiple_of(4)],
+            zn: vec![0.0; pa.next_multiple_of(4)],
+            ka: if models.att_rollout == Rollout::Linear {
+                vec![0.0; pa * pa.next_multiple_of(4)]
+            } else {
+                Vec::new()
+            },
+            pp: pa.next_multiple_of(4),
             max_speed: 5.0,
             max_spin: 15.0,
             fallbacks: 0,
@@ -600,7 +647,7 @@ impl Engine {
             let a = state_rows_times(&self.ct, &self.zt[..pt]);
             xt.copy_from_slice(&a[..6]);
             if linear {
-                lifted_step(&att.ab, pa, &self.za, &mut self.zn);
+                lifted_step(&self.ka, pa, self.pp, &self.za, &mut self.zn);
                 std::mem::swap(&mut self.za, &mut self.zn);
                 xa.copy_from_slice(&self.za[..7]);
             } else {
@@ -638,12 +685,20 @@ impl Engine {
         let (pt, pa) = (trans.p, att.p);
         assert!(trans.n == 6 && att.n == 7 && trans.m == 0 && att.m == 0, "Engine: unexpected model shape");
         assert!(
-            self.ct.len() >= pt * ROWS && self.ca.len() >= pa * ROWS && self.zn.len() >= pa,
+            self.ct.len() >= pt * ROWS
+                && self.zn.len() >= pa.next_multiple_of(4)
+                && if models.att_rollout == Rollout::Linear {
+                    self.ka.len() >= pa * pa.next_multiple_of(4)
+                } else {
+                    self.ca.len() >= pa * ROWS
+                },
             "Engine: scratch too small"
         );
         load_state_rows(trans, &mut self.ct);
         if models.att_rollout == Rollout::Relift {
             load_state_rows(att, &mut self.ca);
+        } else {
+            self.pp = load_lifted(att, &mut self.ka);
         }
         #[cfg(target_arch = "x86_64")]
         let bad = if std::is_x86_feature_detected!("avx2") {
