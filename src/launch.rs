@@ -1,4 +1,5 @@
-//! `dkrrt launch`: starts sim, tracker and the trajectory source as separate
+//! `dkrrt launch`: starts sim, the debris predictor (when the scenario has debris), tracker
+//! and the trajectory source as separate
 //! OS processes on a private iceoryx2 run, supervises them, and writes the
 //! run report.
 //!
@@ -152,6 +153,12 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     if let Some(p) = sc.urdf_path() {
         resolved.robot.urdf = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
     }
+    if let Some(p) = sc.debris_scene_path() {
+        resolved.debris.scene = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
+    }
+    if let Some(p) = sc.predictor_model_path() {
+        resolved.predictor.model = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
+    }
     let sc_path = dir.join("scenario.toml");
     std::fs::write(&sc_path, resolved.to_toml()).map_err(|e| format!("write {}: {e}", sc_path.display()))?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
@@ -161,7 +168,9 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let lim = dkrrt_msg::ContractLimits::symmetric(0.0, 0.0, 0.0);
 
     let mut procs: Vec<Proc> = Vec::new();
-    for name in ["sim", "tracker", "goto"] {
+    let names: &[&'static str] =
+        if sc.has_debris() { &["sim", "predictor", "tracker", "goto"] } else { &["sim", "tracker", "goto"] };
+    for &name in names {
         let stats = dir.join(format!("{name}.json"));
         let _ = std::fs::remove_file(&stats);
         let child = spawn(&exe, name, &run, &sc_path, &stats).map_err(|e| format!("start {name}: {e}"))?;
@@ -269,9 +278,23 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let _ = Bus::remove_stale(&cfg);
     remove_run_leftovers(&run);
 
-    let stats: Vec<Value> = procs.iter().map(|p| read_stats(&p.stats)).collect();
-    let (sim, tr, goto) = (&stats[0], &stats[1], &stats[2]);
+    let stats_of =
+        |name: &str| procs.iter().find(|p| p.name == name).map_or(Value::Null, |p| read_stats(&p.stats));
+    let (sim, tr, goto, pred) =
+        (&stats_of("sim"), &stats_of("tracker"), &stats_of("goto"), &stats_of("predictor"));
     let all_clean = procs.iter().all(|p| p.exit.is_some_and(|s| s.success()));
+    // Any arm–debris contact is a collision: the run failed.
+    let collision = sim.pointer("/debris/first_contact").filter(|c| !c.is_null()).map(|c| {
+        format!(
+            "collision: link {} hit debris {} at t = {:.3} s",
+            c["link"],
+            c["debris_id"],
+            c["t_s"].as_f64().unwrap_or(f64::NAN)
+        )
+    });
+    if let (Some(c), None) = (&collision, &failure) {
+        failure = Some(c.clone());
+    }
     let ok = failure.is_none() && all_clean;
     let lat = |k: &str, full: bool| {
         let keys: &[&str] = if full { &["p50", "p99", "p999", "max"] } else { &["p50", "p99", "max"] };
@@ -302,10 +325,28 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "sim_commands": sim.get("commands_rejected"),
             "goto_states": goto.get("states_rejected"),
         },
+        "debris": if sc.has_debris() { json!({
+            "scene": sc.debris.scene,
+            "collision": collision.is_some(),
+            "min_distance_m": sim.pointer("/debris/min_distance_m"),
+            "contact_ticks": sim.pointer("/debris/contact_ticks"),
+            "first_contact": sim.pointer("/debris/first_contact"),
+            "observation_frames": sim.pointer("/debris/observation_frames"),
+        }) } else { Value::Null },
+        "predictor": if sc.has_debris() { json!({
+            "method": pred.get("method"),
+            "forecasts": pred.get("forecasts"),
+            "forecast_rate_hz": pred.get("forecast_rate_hz"),
+            "forecast_compute_us": pick(pred.get("forecast_compute_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "tracks": pred.get("tracks"),
+            "rejected_observations": pred.get("rejected_observations"),
+            "fit_s": pred.get("fit_s"),
+        }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
         "sim": sim,
         "tracker": tr,
         "goto": goto,
+        "predictor_stats": pred,
     });
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     std::fs::write(&opts.report, text).map_err(|e| format!("write report {}: {e}", opts.report.display()))?;
@@ -357,6 +398,25 @@ pub fn summary(r: &Value) -> String {
         e("/tracking_error_rad/max"),
         e("/final_error_rad")
     );
+    if !r["debris"].is_null() {
+        s += &format!(
+            "  debris ({})         min distance {} m   collision {}\n",
+            r["debris"]["scene"].as_str().unwrap_or("?"),
+            r.pointer("/debris/min_distance_m")
+                .and_then(Value::as_f64)
+                .map_or("n/a".into(), |v| format!("{v:.3}")),
+            r["debris"]["collision"]
+        );
+        s += &format!(
+            "  predictor ({})  forecasts {} at {} Hz   compute us p50 {} p99 {}   rejected obs {}\n",
+            r["predictor"]["method"].as_str().unwrap_or("?"),
+            r["predictor"]["forecasts"],
+            f("/predictor/forecast_rate_hz"),
+            f("/predictor/forecast_compute_us/p50"),
+            f("/predictor/forecast_compute_us/p99"),
+            r["predictor"]["rejected_observations"]
+        );
+    }
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
     for p in r["processes"].as_array().into_iter().flatten() {
         s += &format!(

@@ -3,7 +3,9 @@
 //!
 //! This crate is the `dkrrt` command: the launcher ([`launch`]), the
 //! in-process lockstep evaluator ([`lockstep`]) and the CLI that starts each
-//! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`).
+//! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`, `dkrrt predictor`), plus
+//! `dkrrt train` / `dkrrt predict-eval` ([`train`]).
 
 pub mod launch;
 pub mod lockstep;
+pub mod train;

@@ -45,7 +45,7 @@ struct ProcArgs {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Start sim, tracker and the trajectory source as separate processes, supervise them, report.
+    /// Start sim, predictor, tracker and the trajectory source as separate processes, supervise them, report.
     Launch {
         #[command(flatten)]
         common: Common,
@@ -73,6 +73,41 @@ enum Cmd {
         /// Joint goal in rad, comma separated (default: the scenario's goal).
         #[arg(long, value_delimiter = ',', num_args = 6)]
         goal: Option<Vec<f64>>,
+    },
+    /// The debris predictor process: tracks debris observations, publishes Koopman forecasts (>= 50 Hz).
+    Predictor(ProcArgs),
+    /// Train the Deep Koopman debris model on simulated debris-world data and save the model file.
+    Train {
+        /// Model file to write (format: planner/deep/README.md).
+        #[arg(long, default_value = "deep-attitude.dkm")]
+        out: PathBuf,
+        /// Seconds-scale training (tiny network, little data) for smoke tests.
+        #[arg(long)]
+        quick: bool,
+        /// Override the number of epochs.
+        #[arg(long)]
+        epochs: Option<usize>,
+        /// Also write the validation table (and training report) as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Accuracy study of the debris predictors: median errors at 0.5/1/2/4 s on held-out runs of every scene.
+    PredictEval {
+        /// Write the rows {scene, method, horizon_s, pos_err_m, att_err_rad, n} as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Study size: small (seconds), medium (the README table), full.
+        #[arg(long, default_value = "medium", value_parser = ["small", "medium", "full"])]
+        size: String,
+        /// Deep model file (default: the model embedded in the binary; "train" = train one first).
+        #[arg(long)]
+        model: Option<String>,
+        /// Comma-separated scenes (default: all four).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Option<Vec<String>>,
+        /// Comma-separated methods (default: all).
+        #[arg(long, value_delimiter = ',')]
+        methods: Option<Vec<String>>,
     },
     /// Run the same cores in process, in lockstep (deterministic, no IPC); print the result as JSON.
     Eval {
@@ -120,6 +155,17 @@ fn main() -> ExitCode {
                 a
             });
             dkrrt_planner::process::run(&p.run, &sc, goal, p.stats.as_deref()).map(|_| true)
+        }
+        Cmd::Predictor(p) => {
+            let sc = scenario(&p.common)?;
+            dkrrt_planner::predictor_process::run(&p.run, &sc, p.stats.as_deref()).map(|_| true)
+        }
+        Cmd::Train { out, quick, epochs, json } => {
+            dkrrt::train::train(&out, quick, epochs, json.as_deref()).map(|_| true)
+        }
+        Cmd::PredictEval { json, size, model, scenes, methods } => {
+            dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, json.as_deref())
+                .map(|_| true)
         }
         Cmd::Eval { common } => {
             let sc = scenario(&common)?;

@@ -52,7 +52,7 @@ fn assert_report_shape(r: &Value) {
     }
     let procs = r["processes"].as_array().expect("processes");
     let names: Vec<&str> = procs.iter().map(|p| p["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["sim", "tracker", "goto"]);
+    assert_eq!(names, ["sim", "predictor", "tracker", "goto"]);
     for p in procs {
         assert!(p["pid"].as_u64().unwrap() > 0);
     }
@@ -105,6 +105,65 @@ fn realtime_run_reaches_the_goal_with_a_sane_report() {
         assert!(p["heartbeats"].as_u64().unwrap() > 0, "{p}");
     }
     assert_eq!(r["tracker"]["end_of_run_seen"], true);
+    // The default scene has debris: observed, forecast, no collision on this path.
+    assert_eq!(r["debris"]["collision"], false);
+    assert!(num(&r, "/debris/min_distance_m") > 0.5);
+    assert!(num(&r, "/debris/observation_frames") > 300.0, "{:#}", r["debris"]);
+    assert!(num(&r, "/predictor/forecasts") > 200.0, "{:#}", r["predictor"]);
+    // Paced on absolute deadlines at 50 Hz; generous for stalls of a shared VM.
+    assert!(num(&r, "/predictor/forecast_rate_hz") > 40.0, "{:#}", r["predictor"]);
+    assert_eq!(num(&r, "/predictor/rejected_observations"), 0.0);
+    assert!(stdout.contains("predictor (deep-koopman-online)"), "{stdout}");
+    let _ = std::fs::remove_file(rp);
+}
+
+#[test]
+fn a_link_hitting_debris_fails_the_run_and_is_reported() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("hit");
+    // A sphere on the third link's path: at rest where the elbow link starts out.
+    let sc0 = dkrrt_config::Scenario::default_scenario();
+    let model = dkrrt_model::ArmModel::default_arm();
+    let q = dkrrt_model::JVec::from_column_slice(&sc0.sim.initial_q);
+    let c = &model.collision_capsules()[2];
+    let (a, b) = c.world_segment(&model.link_poses(&q)[c.link]);
+    let m = (a.coords + b.coords) * 0.5;
+    let dir = std::env::temp_dir().join(format!("dkrrt-hit-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("hit.toml"),
+        format!(
+            "name = \"hit\"\n[[debris]]\nid = 9\nshape = {{ kind = \"sphere\", radius = 0.2 }}\nmass = 5.0\n\
+             p = [{}, {}, {}]\nv = [0.0, 0.0, 0.0]\nw = [0.0, 0.0, 0.0]\n",
+            m.x, m.y, m.z
+        ),
+    )
+    .unwrap();
+    let text = dkrrt_config::DEFAULT_SCENARIO
+        .replace("scene = \"sparse-slow\"", "scene = \"hit.toml\"")
+        .replace("method = \"dual-data\"", "method = \"constant-velocity\"");
+    std::fs::write(dir.join("sc.toml"), text).unwrap();
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--duration", "1", "--scenario"])
+        .arg(dir.join("sc.toml"))
+        .arg("--report")
+        .arg(&rp)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(!out.status.success(), "a collision fails the run");
+    let r = read_report(&rp);
+    assert_eq!(r["ok"], false);
+    let reason = r["stop_reason"].as_str().unwrap();
+    assert!(reason.contains("collision") && reason.contains("debris 9"), "{reason}");
+    assert_eq!(r["debris"]["collision"], true);
+    assert_eq!(num(&r, "/debris/first_contact/t_s"), 0.0);
+    assert_eq!(num(&r, "/debris/first_contact/link"), 2.0);
+    assert!(num(&r, "/debris/contact_ticks") > 500.0);
+    // Every process still ended cleanly: a collision is a run failure, not a crash.
+    for p in r["processes"].as_array().unwrap() {
+        assert_eq!(p["exit_code"], 0, "{p}");
+    }
     let _ = std::fs::remove_file(rp);
 }
 
@@ -232,7 +291,7 @@ fn a_broken_scenario_is_refused_naming_the_field() {
 
 #[test]
 fn every_process_has_help() {
-    for sub in ["launch", "sim", "tracker", "goto", "eval"] {
+    for sub in ["launch", "sim", "tracker", "goto", "predictor", "eval"] {
         let out = Command::new(exe()).args([sub, "--help"]).output().unwrap();
         assert!(out.status.success(), "{sub}");
         assert!(String::from_utf8_lossy(&out.stdout).contains("--scenario"), "{sub}");

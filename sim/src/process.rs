@@ -16,6 +16,7 @@ use dkrrt_rt::hist::{LatencyHist, Percentiles};
 use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
 use dkrrt_rt::signals;
 
+use crate::debris::{DebrisSide, DebrisStats};
 use crate::plant::{Plant, PlantConfig, PlantStats};
 
 /// What the sim reports at exit (written as JSON to `--stats`).
@@ -30,6 +31,8 @@ pub struct SimReport {
     pub commands_rejected: u64,
     pub final_q: [f64; NJ],
     pub final_qd: [f64; NJ],
+    /// Debris world figures (`null` without debris): closest approach, contacts.
+    pub debris: Option<DebrisStats>,
     pub stopped_by_signal: bool,
     pub rt: RtReport,
 }
@@ -67,7 +70,19 @@ pub fn run(
     let mut traj_seen = <Trajectory as Zeroed>::zeroed();
     let mut hb = HeartbeatTx::new(&bus, Source::Sim, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
 
+    let mut debris =
+        if sc.has_debris() { Some(DebrisSide::new(sc).map_err(|e| e.to_string())?) } else { None };
+    let mut obs_pub = match debris {
+        Some(_) => Some(bus.publisher::<DebrisObservation>(Source::Sim).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
+    let dt_s = 1.0 / sc.run.control_hz;
+
     let mut plant = Plant::new(model, PlantConfig::from_scenario(sc), &sc.sim.initial_q);
+    if let Some(d) = debris.as_mut() {
+        d.check(plant.model(), &plant.true_state().0);
+    }
     let period_ns = sc.period_ns();
     let total = sc.ticks();
     let mut msg = <RobotState as Zeroed>::zeroed();
@@ -137,6 +152,18 @@ pub fn run(
         }
         plant.step();
         k += 1;
+        if let (Some(d), Some(p)) = (debris.as_mut(), obs_pub.as_mut()) {
+            // The world advances with the plant; contacts are checked on the true arm state.
+            d.step(dt_s);
+            if d.check(plant.model(), &plant.true_state().0) && d.stats.contact_ticks == 1 {
+                let c = d.stats.first_contact.unwrap();
+                eprintln!(
+                    "sim: COLLISION: link {} hit debris {} at t = {:.3} s (distance {:.4} m)",
+                    c.link, c.debris_id, c.t_s, c.distance_m
+                );
+            }
+            d.drain_observations(&mut obs_msg, |m| p.publish(m).map(|_| ())).map_err(|e| e.to_string())?;
+        }
         let state = if plant.brake_engaged() { ProcessState::SafeHold } else { ProcessState::Running };
         hb.maybe_send(
             mono_ns(),
@@ -171,6 +198,7 @@ pub fn run(
         commands_rejected: cmd_sub.rejected,
         final_q: q.into(),
         final_qd: qd.into(),
+        debris: debris.map(|d| d.stats),
         stopped_by_signal,
         rt,
     };

@@ -6,6 +6,7 @@
 //! scenario is embedded, so `dkrrt launch` needs no argument.
 
 pub mod arm;
+pub mod debris;
 
 use std::path::{Path, PathBuf};
 
@@ -55,6 +56,10 @@ pub struct Scenario {
     pub tracker: TrackerCfg,
     pub sim: SimCfg,
     pub goal: GoalCfg,
+    /// Debris world of the simulator (and its sensor).
+    pub debris: DebrisCfg,
+    /// The debris predictor process.
+    pub predictor: PredictorCfg,
     /// Directory relative paths are resolved against (not in the file).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
@@ -118,6 +123,53 @@ pub struct SimCfg {
 #[serde(deny_unknown_fields)]
 pub struct GoalCfg {
     pub q: [f64; NJ],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DebrisCfg {
+    /// Named scene (`sparse-slow`, `dense`, `fast-crossing`, `tumbling-rods`), a path to a
+    /// scene TOML (relative to the scenario file), or `""` for no debris.
+    pub scene: String,
+    /// Position of the arm base in the module's LVLH frame, m (base axes = LVLH axes).
+    pub base_lvlh: [f64; 3],
+    /// A link–debris pair at or below this distance is a contact (a collision: run failed), m.
+    pub contact_margin_m: f64,
+    /// Sensor sample rate, Hz (30–100).
+    pub sensor_rate_hz: f64,
+    /// Position noise per axis, m.
+    pub pos_sigma_m: f64,
+    /// Attitude noise per axis, rad.
+    pub att_sigma_rad: f64,
+    /// Probability that one measurement is lost.
+    pub dropout: f64,
+    /// Fixed sensor latency, s.
+    pub latency_s: f64,
+    /// Additional uniform latency jitter, s.
+    pub latency_jitter_s: f64,
+    /// Also report (noisy) linear and angular velocity.
+    pub report_rates: bool,
+    /// Sensor noise seed.
+    pub seed: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PredictorCfg {
+    /// Prediction method (`constant-velocity`, `edmd-poly`, `edmd-rbf`, `koopman-online`,
+    /// `dual-data`, and the deep methods when a model file is given).
+    pub method: String,
+    /// Trained model file (`dkrrt train`), relative to the scenario file; `""` = none.
+    pub model: String,
+    /// Forecasts published per second (>= 50 for the planner).
+    pub rate_hz: f64,
+    /// Forecast steps (<= 40) and their spacing, s.
+    pub horizon_steps: u32,
+    pub dt_s: f64,
+    /// Training runs of the scene simulated at start-up to fit the models (seeded).
+    pub fit_runs: u32,
+    pub fit_seed: u64,
+    pub cpu: i32,
 }
 
 /// Joint limits of the arm the scenario is checked against.
@@ -222,6 +274,37 @@ impl Scenario {
         })
     }
 
+    /// The debris scene path, resolved against the scenario's directory, if
+    /// `debris.scene` names a file (contains `/` or ends in `.toml`).
+    pub fn debris_scene_path(&self) -> Option<PathBuf> {
+        let s = &self.debris.scene;
+        if !(s.contains('/') || s.ends_with(".toml")) {
+            return None;
+        }
+        let p = PathBuf::from(s);
+        Some(match (&self.base_dir, p.is_relative()) {
+            (Some(dir), true) => dir.join(p),
+            _ => p,
+        })
+    }
+
+    /// The predictor's model file, resolved against the scenario's directory.
+    pub fn predictor_model_path(&self) -> Option<PathBuf> {
+        if self.predictor.model.is_empty() {
+            return None;
+        }
+        let p = PathBuf::from(&self.predictor.model);
+        Some(match (&self.base_dir, p.is_relative()) {
+            (Some(dir), true) => dir.join(p),
+            _ => p,
+        })
+    }
+
+    /// Whether the run has debris (and so a predictor).
+    pub fn has_debris(&self) -> bool {
+        !self.debris.scene.is_empty()
+    }
+
     /// Control period in ns.
     pub fn period_ns(&self) -> u64 {
         (1e9 / self.run.control_hz).round() as u64
@@ -291,6 +374,41 @@ impl Scenario {
         }
         if self.sim.command_timeout_ticks == 0 {
             return Err(c.fail("sim.command_timeout_ticks", 0, "must be >= 1"));
+        }
+        let d = &self.debris;
+        for (i, b) in d.base_lvlh.iter().enumerate() {
+            if !b.is_finite() || b.abs() > 1000.0 {
+                return Err(c.fail(format!("debris.base_lvlh[{i}]"), b, "must be finite, |x| <= 1000 m"));
+            }
+        }
+        c.non_negative("debris.contact_margin_m", d.contact_margin_m)?;
+        if !(30.0..=100.0).contains(&d.sensor_rate_hz) {
+            return Err(c.fail("debris.sensor_rate_hz", d.sensor_rate_hz, "must be within [30, 100] Hz"));
+        }
+        c.non_negative("debris.pos_sigma_m", d.pos_sigma_m)?;
+        c.non_negative("debris.att_sigma_rad", d.att_sigma_rad)?;
+        if !(0.0..1.0).contains(&d.dropout) {
+            return Err(c.fail("debris.dropout", d.dropout, "must be within [0, 1)"));
+        }
+        c.non_negative("debris.latency_s", d.latency_s)?;
+        c.non_negative("debris.latency_jitter_s", d.latency_jitter_s)?;
+        if d.latency_s + d.latency_jitter_s > 1.0 {
+            return Err(c.fail("debris.latency_s", d.latency_s, "latency + jitter must be <= 1 s"));
+        }
+        let p = &self.predictor;
+        if !(1.0..=1000.0).contains(&p.rate_hz) {
+            return Err(c.fail("predictor.rate_hz", p.rate_hz, "must be within [1, 1000] Hz"));
+        }
+        if p.horizon_steps == 0 || p.horizon_steps as usize > dkrrt_msg::FORECAST_STEPS {
+            return Err(c.fail(
+                "predictor.horizon_steps",
+                p.horizon_steps,
+                format!("must be 1..={}", dkrrt_msg::FORECAST_STEPS),
+            ));
+        }
+        c.positive("predictor.dt_s", p.dt_s)?;
+        if p.fit_runs == 0 || p.fit_runs > 64 {
+            return Err(c.fail("predictor.fit_runs", p.fit_runs, "must be 1..=64"));
         }
         Ok(())
     }

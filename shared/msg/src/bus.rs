@@ -278,6 +278,35 @@ impl<T: Topic> Sub<T> {
     }
 }
 
+impl<T: Topic> Sub<T> {
+    /// Like [`Sub::for_each`] with a caller-chosen check instead of [`Validate::validate`]
+    /// (e.g. a frame-level check, the items then checked one by one so that one bad item
+    /// does not lose the good ones). Rejects are counted the same way.
+    pub fn for_each_checked(
+        &mut self,
+        check: impl Fn(&T) -> Result<(), ValidationError>,
+        mut f: impl FnMut(&T),
+    ) -> Result<usize, BusError> {
+        let mut n = 0;
+        while let Some(sample) =
+            self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?
+        {
+            self.received += 1;
+            match check(sample.payload()) {
+                Ok(()) => {
+                    f(sample.payload());
+                    n += 1;
+                }
+                Err(e) => {
+                    self.rejected += 1;
+                    self.last_error = Some(e);
+                }
+            }
+        }
+        Ok(n)
+    }
+}
+
 /// Rate-limited heartbeat publisher (every process sends one at `hz`).
 pub struct HeartbeatTx {
     port: Pub<Heartbeat>,

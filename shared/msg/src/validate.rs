@@ -234,23 +234,42 @@ fn debris_pose(
     unit_quat(field_q, index, q)
 }
 
-impl Validate for DebrisObservation {
-    fn validate(&self, lim: &ContractLimits) -> Result<(), ValidationError> {
+impl DebrisObservation {
+    /// Frame-level check only (`count`). Consumers that must not lose the good items of a
+    /// frame with one bad item check the items one by one with [`DebrisObs::validate_item`].
+    pub fn validate_frame(&self) -> Result<(), ValidationError> {
         let n = self.count as usize;
         if n > MAX_DEBRIS {
             return Err(ValidationError::Count { field: "count", value: n as u64, max: MAX_DEBRIS as u64 });
         }
-        for (i, o) in self.items[..n].iter().enumerate() {
-            debris_pose(lim, i, &o.p, &o.q, "items.p", "items.q")?;
-            scalar("items.bounding_radius", o.bounding_radius, 0.0, 100.0)?;
-            if o.flags & DEBRIS_HAS_VELOCITY != 0 {
-                finite("items.v", &o.v)?;
-                finite("items.w", &o.w)?;
-                let s = o.v.iter().map(|x| x * x).sum::<f64>().sqrt();
-                scalar("items.v", s, 0.0, lim.debris_speed_max)?;
-                let w = o.w.iter().map(|x| x * x).sum::<f64>().sqrt();
-                scalar("items.w", w, 0.0, lim.debris_spin_max)?;
-            }
+        Ok(())
+    }
+}
+
+impl DebrisObs {
+    /// Checks one observation item (`index` is reported in the error).
+    pub fn validate_item(&self, lim: &ContractLimits, index: usize) -> Result<(), ValidationError> {
+        let o = self;
+        let i = index;
+        debris_pose(lim, i, &o.p, &o.q, "items.p", "items.q")?;
+        scalar("items.bounding_radius", o.bounding_radius, 0.0, 100.0)?;
+        if o.flags & DEBRIS_HAS_VELOCITY != 0 {
+            finite("items.v", &o.v)?;
+            finite("items.w", &o.w)?;
+            let s = o.v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            scalar("items.v", s, 0.0, lim.debris_speed_max)?;
+            let w = o.w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            scalar("items.w", w, 0.0, lim.debris_spin_max)?;
+        }
+        Ok(())
+    }
+}
+
+impl Validate for DebrisObservation {
+    fn validate(&self, lim: &ContractLimits) -> Result<(), ValidationError> {
+        self.validate_frame()?;
+        for (i, o) in self.items[..self.count as usize].iter().enumerate() {
+            o.validate_item(lim, i)?;
         }
         Ok(())
     }

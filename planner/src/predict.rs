@@ -1,0 +1,252 @@
+//! The debris predictor's process-independent core: the scenario's models fitted at
+//! start-up, observation frames of the message contract fed to [`DebrisPredictor`] item by
+//! item (one bad item never loses the good ones), and forecasts written into the
+//! fixed-size [`DebrisForecast`] on one common time grid.
+//!
+//! Frames: messages carry arm-base-frame poses; the predictor's models work in the module's
+//! LVLH frame (relative orbital dynamics), so positions are shifted by `debris.base_lvlh` on
+//! the way in and out. Time: plant-clock seconds (`t_meas_ns`).
+//!
+//! [`PredictorCore::observe_frame`] and [`PredictorCore::forecast_into`] allocate nothing.
+
+use dkrrt_config::Scenario;
+use dkrrt_debris::{Observation, Scene, SCENE_NAMES};
+use dkrrt_msg::{
+    ContractLimits, DebrisForecast, DebrisObservation, ForecastStep, DEBRIS_HAS_VELOCITY, FORECAST_STEPS,
+    MAX_DEBRIS,
+};
+use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
+use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
+use dkrrt_predictor::{
+    DebrisPredictor, FitConfig, ForecastBuffer, GateStats, Method, Models, ObserveOutcome, PredictorConfig,
+};
+use serde::Serialize;
+
+/// Seconds of each simulated training run used for the start-up fit.
+pub const FIT_RUN_S: f64 = 20.0;
+
+/// The deep attitude model shipped in the binary (`models/deep-attitude.dkm`, written by
+/// `dkrrt train` with its default options); used when `predictor.model` is `""`.
+pub const EMBEDDED_MODEL: &[u8] = include_bytes!("../../models/deep-attitude.dkm");
+
+/// The scenario's trained deep model: the file of `predictor.model`, or the embedded one.
+/// Errors name the field and what is wrong with the file (format, version, checksum, ...).
+pub fn load_trained(sc: &Scenario) -> Result<TrainedModels, String> {
+    let res = match sc.predictor_model_path() {
+        Some(p) => TrainedModels::load(&p).map_err(|e| format!("predictor.model {}: {e}", p.display())),
+        None => dkrrt_deep::from_bytes(EMBEDDED_MODEL)
+            .and_then(|m| dkrrt_deep::select(m, ATTITUDE_MODEL, 7))
+            .map(|attitude| TrainedModels { attitude, report: None, validation: Vec::new() })
+            .map_err(|e| format!("embedded deep model: {e}")),
+    };
+    res
+}
+
+/// Observation items the core rejected before the predictor saw them (contract violations),
+/// plus the predictor's own gate statistics.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ObsCounters {
+    /// Frames received / rejected as a whole (bad `count`).
+    pub frames: u64,
+    pub frames_rejected: u64,
+    /// Items received.
+    pub items: u64,
+    /// Items rejected by the contract check (NaN/Inf, out-of-range position, non-unit quaternion...).
+    pub items_invalid: u64,
+    /// Items rejected by the predictor's gate (impossible jumps, out of order, table full, ...).
+    pub items_gated: u64,
+}
+
+impl ObsCounters {
+    /// Every rejected observation item (a rejected frame counts once).
+    pub fn rejected(&self) -> u64 {
+        self.frames_rejected + self.items_invalid + self.items_gated
+    }
+}
+
+/// Builds the predictor's models for the scenario: the scene is simulated `fit_runs` times
+/// (seeded, initial states perturbed for named scenes) with the scenario's sensor, and the
+/// method is fitted on the filtered estimates. Allocates; start-up only.
+pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
+    let method = Method::from_name(&sc.predictor.method).ok_or_else(|| {
+        let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+        format!("predictor.method {:?}: unknown (one of {})", sc.predictor.method, names.join(", "))
+    })?;
+    let scene = sc.load_debris_scene().map_err(|e| e.to_string())?;
+    let mut fit = FitConfig {
+        dt: sc.predictor.dt_s,
+        horizon: sc.predictor.horizon_steps as usize,
+        ..FitConfig::default()
+    };
+    let recs = training_runs(sc, &scene)?;
+    fit.frame_rate = recs.first().map_or(fit.frame_rate, |r| r.mean_motion);
+    let ts = training_set(&recs, fit.dt, fit.horizon, 1.0, &PredictorConfig::default());
+    if ts.n_pairs() < 10 && method.koopman() {
+        return Err(format!("predictor: the scene gives too little training data ({} pairs)", ts.n_pairs()));
+    }
+    let deep = if method.deep() { Some(load_trained(sc)?) } else { None };
+    Models::fit_with_deep(method, &ts, &fit, deep.as_ref().map(|d| &d.attitude))
+        .map_err(|e| format!("predictor: fitting {}: {e}", method.name()))
+}
+
+fn training_runs(sc: &Scenario, scene: &Scene) -> Result<Vec<Recording>, String> {
+    let named = SCENE_NAMES.contains(&sc.debris.scene.as_str());
+    (0..sc.predictor.fit_runs as u64)
+        .map(|r| {
+            let seed = sc.predictor.fit_seed + r;
+            let s = if named {
+                perturbed_scene(&sc.debris.scene, seed, 1.0).map_err(|e| e.to_string())?
+            } else {
+                scene.clone()
+            };
+            record(&s, sc.sensor_config(), FIT_RUN_S, 0.01, seed).map_err(|e| e.to_string())
+        })
+        .collect()
+}
+
+/// Predictor + forecast buffer + the frame/message conversions.
+pub struct PredictorCore {
+    pred: DebrisPredictor,
+    buf: ForecastBuffer,
+    base: [f64; 3],
+    steps: usize,
+    /// Bounding radius per debris id (from the observations).
+    radii: heapless::Vec<(u32, f64), { 2 * MAX_DEBRIS }>,
+    /// Newest observation time seen (plant clock), s.
+    pub newest_t: f64,
+    pub counters: ObsCounters,
+}
+
+impl PredictorCore {
+    /// A core around fitted `models` (allocates once).
+    pub fn new(models: Models, sc: &Scenario) -> PredictorCore {
+        let pred = DebrisPredictor::new(models, PredictorConfig::default());
+        let buf = ForecastBuffer::for_predictor(&pred);
+        let steps = (sc.predictor.horizon_steps as usize).min(FORECAST_STEPS).min(buf.horizon());
+        PredictorCore {
+            pred,
+            buf,
+            base: sc.debris.base_lvlh,
+            steps,
+            radii: heapless::Vec::new(),
+            newest_t: f64::NEG_INFINITY,
+            counters: ObsCounters::default(),
+        }
+    }
+
+    /// The predictor (statistics, tracks).
+    pub fn predictor(&self) -> &DebrisPredictor {
+        &self.pred
+    }
+
+    /// The predictor's gate statistics.
+    pub fn gate(&self) -> &GateStats {
+        self.pred.stats()
+    }
+
+    /// Feeds one observation frame: a bad `count` rejects the frame; otherwise every item is
+    /// checked on its own against the contract and then gated by the predictor.
+    pub fn observe_frame(&mut self, frame: &DebrisObservation, lim: &ContractLimits) {
+        self.counters.frames += 1;
+        if frame.validate_frame().is_err() {
+            self.counters.frames_rejected += 1;
+            return;
+        }
+        for (i, it) in frame.items[..frame.count as usize].iter().enumerate() {
+            self.counters.items += 1;
+            if it.validate_item(lim, i).is_err() {
+                self.counters.items_invalid += 1;
+                continue;
+            }
+            let t = it.t_meas_ns as f64 * 1e-9;
+            let b = self.base;
+            let o = Observation {
+                id: it.id,
+                t,
+                t_avail: frame.header.stamp_ns as f64 * 1e-9,
+                p: [it.p[0] + b[0], it.p[1] + b[1], it.p[2] + b[2]],
+                q: it.q,
+                v: it.v,
+                w: it.w,
+                has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
+                seq: frame.header.seq as u32,
+            };
+            match self.pred.observe(&o) {
+                ObserveOutcome::Rejected(_) => self.counters.items_gated += 1,
+                _ => {
+                    self.newest_t = self.newest_t.max(t);
+                    self.set_radius(it.id, it.bounding_radius);
+                }
+            }
+        }
+    }
+
+    fn set_radius(&mut self, id: u32, r: f64) {
+        if let Some(e) = self.radii.iter_mut().find(|e| e.0 == id) {
+            e.1 = r;
+        } else if self.radii.push((id, r)).is_err() {
+            // Full: forget the oldest entry (ids of long-gone tracks).
+            self.radii.remove(0);
+            let _ = self.radii.push((id, r));
+        }
+    }
+
+    fn radius(&self, id: u32) -> f64 {
+        self.radii.iter().find(|e| e.0 == id).map_or(0.0, |e| e.1)
+    }
+
+    /// Forecasts every mature track and writes them into `msg` on the common grid
+    /// `t0 + k·dt, k = 1..=steps` with `t0` = the newest track time. Positions are in the base
+    /// frame; `sigma_m` = position bound + attitude bound × bounding radius (the shape's
+    /// extremities move by that much under an attitude error), capped at 2 × the radius for
+    /// the attitude part. Returns the number of tracks written (0: nothing to publish).
+    pub fn forecast_into(&mut self, msg: &mut DebrisForecast) -> usize {
+        let n = self.pred.forecast(&mut self.buf);
+        let h = self.buf.horizon();
+        let dt = self.buf.dt();
+        let t0 = (0..n).map(|i| self.buf.t0(i)).fold(f64::NEG_INFINITY, f64::max);
+        msg.count = n as u32;
+        msg.steps = self.steps as u32;
+        msg.dt_s = dt;
+        msg.t0_ns = if n > 0 { (t0.max(0.0) * 1e9).round() as u64 } else { 0 };
+        msg.header.stamp_ns = msg.t0_ns;
+        msg.header.flags = 0;
+        let b = self.base;
+        for i in 0..n {
+            let id = self.buf.id(i);
+            let radius = self.radius(id);
+            let tr = &mut msg.tracks[i];
+            tr.id = id;
+            tr.bounding_radius = radius;
+            let lag = ((t0 - self.buf.t0(i)) / dt).max(0.0);
+            for k in 1..=self.steps {
+                // Fractional step of this track's own forecast that falls on the common grid.
+                let s = k as f64 + lag;
+                let j = (s.floor() as usize).clamp(1, h - 1);
+                let f = s - j as f64; // > 1 beyond the track's horizon: linear extrapolation
+                let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
+                let mut q = [0.0; 4];
+                let dot: f64 = (0..4).map(|m| a[6 + m] * c[6 + m]).sum();
+                let sgn = if dot < 0.0 { -1.0 } else { 1.0 };
+                let fq = f.min(1.0);
+                for m in 0..4 {
+                    q[m] = (1.0 - fq) * a[6 + m] + fq * sgn * c[6 + m];
+                }
+                let qn = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                q.iter_mut().for_each(|x| *x /= qn);
+                let kk = (j + 1).min(h);
+                let att = self.buf.att_radius(i, kk).min(2.0);
+                tr.steps[k - 1] = ForecastStep {
+                    p: [
+                        a[0] + f * (c[0] - a[0]) - b[0],
+                        a[1] + f * (c[1] - a[1]) - b[1],
+                        a[2] + f * (c[2] - a[2]) - b[2],
+                    ],
+                    q,
+                    sigma_m: self.buf.pos_radius(i, kk) + att * radius,
+                };
+            }
+        }
+        n
+    }
+}

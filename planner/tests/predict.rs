@@ -1,0 +1,159 @@
+//! The predictor core without IPC: item-wise validation of observation frames, forecasts
+//! on the common grid in the base frame against the simulated truth, no allocation.
+
+use dkrrt_config::Scenario;
+use dkrrt_msg::{ContractLimits, DebrisForecast, DebrisObservation, Validate, Zeroed, MAX_DEBRIS};
+use dkrrt_planner::predict::{fit_models, PredictorCore};
+use dkrrt_sim::debris::DebrisSide;
+
+fn lim() -> ContractLimits {
+    ContractLimits::symmetric(1.0, 1.0, 1.0)
+}
+
+fn scenario(scene: &str, method: &str) -> Scenario {
+    let mut sc = Scenario::default_scenario();
+    sc.debris.scene = scene.into();
+    sc.debris.base_lvlh = [0.7, -1.3, 0.4];
+    sc.predictor.method = method.into();
+    sc.predictor.fit_runs = 2;
+    sc
+}
+
+/// Runs the debris side for `ticks` ms, feeding every frame to the core.
+fn feed(side: &mut DebrisSide, core: &mut PredictorCore, ticks: usize) {
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let l = lim();
+    for _ in 0..ticks {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |f| {
+            core.observe_frame(f, &l);
+            Ok(())
+        })
+        .unwrap();
+    }
+}
+
+#[test]
+fn one_bad_item_does_not_lose_the_good_ones() {
+    let mut sc = scenario("sparse-slow", "constant-velocity");
+    sc.debris.latency_jitter_s = 0.0; // every record of a sample in one frame
+    sc.debris.dropout = 0.0;
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    for _ in 0..40 {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |_| Ok(())).unwrap();
+    }
+    assert!(frame.count >= 4, "a real frame to corrupt");
+    let n = frame.count as u64;
+    frame.items[1].p[0] = f64::NAN;
+    frame.items[2].q = [0.5, 0.0, 0.0, 0.0]; // not unit
+    core.observe_frame(&frame, &lim());
+    let c = core.counters;
+    assert_eq!((c.frames, c.items, c.items_invalid, c.items_gated), (1, n, 2, 0));
+    assert_eq!(core.gate().accepted, n - 2);
+    assert_eq!(c.rejected(), 2);
+
+    // An impossible jump of a tracked object is rejected by the gate and counted.
+    let mut next = frame;
+    for it in next.items[..frame.count as usize].iter_mut() {
+        it.t_meas_ns += 20_000_000;
+    }
+    next.items[0].p[1] += 30.0; // 1500 m/s
+    next.items[1].p[0] = 1.0; // valid again (new track)
+    core.observe_frame(&next, &lim());
+    assert_eq!(core.counters.items_gated, 1);
+    assert_eq!(core.gate().pos_jump, 1);
+    assert_eq!(core.counters.items_invalid, 3, "item 2 still has its bad quaternion");
+
+    // A frame whose count exceeds the capacity is rejected whole.
+    let mut bad = frame;
+    bad.count = MAX_DEBRIS as u32 + 1;
+    core.observe_frame(&bad, &lim());
+    assert_eq!(core.counters.frames_rejected, 1);
+    assert_eq!(core.counters.rejected(), 3 + 1 + 1);
+}
+
+#[test]
+fn forecasts_are_on_a_common_grid_in_the_base_frame_and_match_the_truth() {
+    let sc = scenario("sparse-slow", "dual-data");
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc).unwrap();
+    feed(&mut side, &mut core, 3000);
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let n = core.forecast_into(&mut msg);
+    let objects = side.world().debris().len();
+    assert_eq!(n, objects, "every object is forecast");
+    assert!(msg.validate(&lim()).is_ok());
+    assert_eq!(msg.steps, 40);
+    assert!((msg.dt_s - 0.1).abs() < 1e-12);
+    // t0 = the newest estimate: the last measurement (latency 30-40 ms, 50 Hz grid).
+    let t0 = msg.t0_ns as f64 * 1e-9;
+    assert!((2.92..=2.99).contains(&t0), "t0 {t0}");
+    // Advance the truth to t0 + 1 s (step index 9) and compare, in the base frame.
+    let t1 = t0 + 1.0;
+    let ticks = ((t1 - side.world().time()) * 1000.0).round() as usize;
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    for _ in 0..ticks {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |_| Ok(())).unwrap();
+    }
+    assert!((side.world().time() - t1).abs() < 1e-3);
+    let b = sc.debris.base_lvlh;
+    let mut worst: f64 = 0.0;
+    for tr in &msg.tracks[..n] {
+        let d = side.world().debris().iter().find(|d| d.id == tr.id).unwrap();
+        let p = tr.steps[9].p;
+        let err = ((p[0] + b[0] - d.state.p.x).powi(2)
+            + (p[1] + b[1] - d.state.p.y).powi(2)
+            + (p[2] + b[2] - d.state.p.z).powi(2))
+        .sqrt();
+        worst = worst.max(err);
+        assert!(tr.bounding_radius > 0.0);
+        // The bound grows with the horizon.
+        assert!(tr.steps[39].sigma_m >= tr.steps[0].sigma_m);
+    }
+    // Sensor noise 1 cm, slow objects: 1 s ahead within a few centimetres.
+    assert!(worst < 0.08, "worst 1 s position error {worst} m");
+}
+
+#[test]
+fn observe_and_forecast_allocate_nothing() {
+    let sc = scenario("dense", "koopman-online");
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc).unwrap();
+    feed(&mut side, &mut core, 500);
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    core.forecast_into(&mut msg);
+    let mut frames = Vec::new();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    for _ in 0..2000 {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |f| {
+            frames.push(*f);
+            Ok(())
+        })
+        .unwrap();
+    }
+    let l = lim();
+    let (_, s) = dkrrt_rt::alloc_count::count(|| {
+        for f in &frames {
+            core.observe_frame(f, &l);
+            core.forecast_into(&mut msg);
+        }
+    });
+    assert!(core.counters.items > 1000);
+    assert!(msg.count > 20);
+    assert_eq!(s.allocs, 0, "{s:?}");
+}
+
+#[test]
+fn an_unknown_method_names_the_field() {
+    let sc = scenario("sparse-slow", "crystal-ball");
+    let e = fit_models(&sc).err().unwrap();
+    assert!(e.contains("predictor.method") && e.contains("crystal-ball"), "{e}");
+}
+
+#[global_allocator]
+static ALLOC: dkrrt_rt::alloc_count::CountingAlloc = dkrrt_rt::alloc_count::CountingAlloc;

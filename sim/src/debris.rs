@@ -1,0 +1,191 @@
+//! The simulator's debris side, as a plain core: the debris world advanced with the plant,
+//! the sensor that observes it, and the arm-link vs debris contact check of every tick.
+//!
+//! Frames: the world lives in the module's LVLH frame; the arm base sits at
+//! `debris.base_lvlh` with its axes along LVLH, so a base-frame point is
+//! `p_lvlh − base_lvlh` and attitudes are the same in both. Messages carry base-frame poses.
+//! Time: the world starts at plant time 0 and advances exactly one control period per
+//! plant tick, so the world time *is* the plant time.
+//!
+//! Allocation-free after construction: [`DebrisSide::tick`] and
+//! [`DebrisSide::drain_observations`] (tested with the counting allocator).
+
+use dkrrt_config::Scenario;
+use dkrrt_debris::{proximity, ContactPair, DebrisWorld, LinkCapsule, ObsBuffer, Sensor};
+use dkrrt_model::{ArmModel, JVec, NJ};
+use dkrrt_msg::{DebrisObs, DebrisObservation, DEBRIS_HAS_VELOCITY, MAX_DEBRIS};
+use serde::Serialize;
+
+/// The first contact of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Contact {
+    /// Plant time, s.
+    pub t_s: f64,
+    /// Arm link (0 = first moving link).
+    pub link: usize,
+    /// Debris id.
+    pub debris_id: u32,
+    /// Separation (≤ the contact margin), m.
+    pub distance_m: f64,
+}
+
+/// What the debris side reports.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct DebrisStats {
+    /// Objects at the start.
+    pub objects: usize,
+    /// Ticks checked.
+    pub ticks_checked: u64,
+    /// Smallest link–debris distance seen, m (`null` without debris).
+    pub min_distance_m: Option<f64>,
+    /// Plant time, link and debris of the smallest distance.
+    pub min_distance_t_s: f64,
+    pub min_distance_link: usize,
+    pub min_distance_debris: u32,
+    /// Ticks with at least one pair within the contact margin.
+    pub contact_ticks: u64,
+    /// The first contact (any contact is a collision: the run failed).
+    pub first_contact: Option<Contact>,
+    /// Scheduled events fired (impulses, splits).
+    pub events_fired: u32,
+    /// Observation records produced by the sensor / frames they were sent in.
+    pub observations: u64,
+    pub observation_frames: u64,
+}
+
+impl DebrisStats {
+    /// A collision happened.
+    pub fn collided(&self) -> bool {
+        self.first_contact.is_some()
+    }
+}
+
+/// Debris world + sensor + contact check, stepped with the plant.
+pub struct DebrisSide {
+    world: DebrisWorld,
+    sensor: Sensor,
+    obs: ObsBuffer,
+    base: [f64; 3],
+    margin: f64,
+    capsules: [LinkCapsule; NJ],
+    contacts: [ContactPair; 8],
+    /// Running figures.
+    pub stats: DebrisStats,
+}
+
+impl DebrisSide {
+    /// Builds the scenario's debris world and sensor (allocates; not in the loop).
+    pub fn new(sc: &Scenario) -> Result<DebrisSide, String> {
+        let scene = sc.load_debris_scene().map_err(|e| e.to_string())?;
+        let world =
+            DebrisWorld::new(&scene).map_err(|e| format!("debris.scene {:?}: {e}", sc.debris.scene))?;
+        let sensor =
+            Sensor::new(sc.sensor_config(), sc.debris.seed).map_err(|e| format!("debris sensor: {e}"))?;
+        let objects = world.debris().len();
+        let mut sensor = sensor;
+        let mut obs = ObsBuffer::new();
+        // The sensor's sample grid starts at plant time 0.
+        let first = sensor.poll(0.0, world.debris(), &mut obs) as u64;
+        Ok(DebrisSide {
+            world,
+            sensor,
+            obs,
+            base: sc.debris.base_lvlh,
+            margin: sc.debris.contact_margin_m,
+            capsules: [LinkCapsule { a: [0.0; 3], b: [0.0; 3], radius: 0.0 }; NJ],
+            contacts: [ContactPair::default(); 8],
+            stats: DebrisStats { objects, observations: first, ..DebrisStats::default() },
+        })
+    }
+
+    /// The world (read-only).
+    pub fn world(&self) -> &DebrisWorld {
+        &self.world
+    }
+
+    /// The arm's link capsules at joint positions `q`, in LVLH.
+    pub fn arm_capsules(&mut self, model: &ArmModel, q: &JVec) -> &[LinkCapsule; NJ] {
+        let poses = model.link_poses(q);
+        for (c, lc) in self.capsules.iter_mut().zip(model.collision_capsules()) {
+            let (a, b) = lc.world_segment(&poses[lc.link]);
+            let o = &self.base;
+            *c = LinkCapsule {
+                a: [a.x + o[0], a.y + o[1], a.z + o[2]],
+                b: [b.x + o[0], b.y + o[1], b.z + o[2]],
+                radius: lc.radius,
+            };
+        }
+        &self.capsules
+    }
+
+    /// Checks the arm at `q` against the debris at plant time `t` (the world's current time).
+    /// Returns true if a pair is within the contact margin.
+    pub fn check(&mut self, model: &ArmModel, q: &JVec) -> bool {
+        self.arm_capsules(model, q);
+        let t = self.world.time();
+        let pr = proximity(self.world.debris(), &self.capsules, self.margin, &mut self.contacts);
+        let s = &mut self.stats;
+        s.ticks_checked += 1;
+        if pr.min_distance.is_finite() && s.min_distance_m.is_none_or(|m| pr.min_distance < m) {
+            s.min_distance_m = Some(pr.min_distance);
+            s.min_distance_t_s = t;
+            s.min_distance_link = pr.capsule;
+            s.min_distance_debris = pr.debris_id;
+        }
+        if pr.any_contact() {
+            s.contact_ticks += 1;
+            if s.first_contact.is_none() {
+                let c = self.contacts[0];
+                s.first_contact =
+                    Some(Contact { t_s: t, link: c.capsule, debris_id: c.debris_id, distance_m: c.distance });
+            }
+            return true;
+        }
+        false
+    }
+
+    /// Advances the world by `dt` and lets the sensor sample (the observations become
+    /// available after the sensor latency; collect them with [`Self::drain_observations`]).
+    pub fn step(&mut self, dt: f64) {
+        self.world.step(dt);
+        self.stats.events_fired = self.world.events_fired();
+        let t = self.world.time();
+        self.stats.observations += self.sensor.poll(t, self.world.debris(), &mut self.obs) as u64;
+    }
+
+    /// Moves the available observations into frames of at most [`MAX_DEBRIS`] items, calling
+    /// `send` for each filled frame (`stamp_ns` = plant time now). Returns the frames sent.
+    pub fn drain_observations<E>(
+        &mut self,
+        frame: &mut DebrisObservation,
+        mut send: impl FnMut(&mut DebrisObservation) -> Result<(), E>,
+    ) -> Result<u32, E> {
+        let now_ns = (self.world.time() * 1e9).round() as u64;
+        let mut sent = 0;
+        let all = self.obs.as_slice();
+        for chunk in all.chunks(MAX_DEBRIS) {
+            frame.header.stamp_ns = now_ns;
+            frame.header.flags = 0;
+            frame.count = chunk.len() as u32;
+            for (item, o) in frame.items.iter_mut().zip(chunk) {
+                let radius =
+                    self.world.index_of(o.id).map_or(0.0, |i| self.world.debris()[i].props.bounding_radius);
+                *item = DebrisObs {
+                    id: o.id,
+                    flags: if o.has_rates { DEBRIS_HAS_VELOCITY } else { 0 },
+                    t_meas_ns: (o.t.max(0.0) * 1e9).round() as u64,
+                    p: [o.p[0] - self.base[0], o.p[1] - self.base[1], o.p[2] - self.base[2]],
+                    q: o.q,
+                    v: o.v,
+                    w: o.w,
+                    bounding_radius: radius,
+                };
+            }
+            send(frame)?;
+            sent += 1;
+        }
+        self.obs.clear();
+        self.stats.observation_frames += sent as u64;
+        Ok(sent)
+    }
+}

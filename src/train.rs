@@ -1,0 +1,155 @@
+//! `dkrrt train` and `dkrrt predict-eval`: thin command wrappers around the predictor
+//! library's training (`dkrrt_predictor::training`) and accuracy study (`dkrrt_predictor::eval`).
+
+use std::io::Write;
+use std::path::Path;
+
+use dkrrt_deep::Progress;
+use dkrrt_predictor::eval::{markdown_table, run_study_with, StudyConfig};
+use dkrrt_predictor::training::{train_models, TrainOptions, TrainedModels};
+use dkrrt_predictor::Method;
+
+fn progress_bar(p: &Progress) {
+    let width = 30;
+    let done = (p.epoch * width / p.epochs.max(1)).min(width);
+    let eta = if p.epoch > 0 { p.elapsed_s / p.epoch as f64 * (p.epochs - p.epoch) as f64 } else { 0.0 };
+    eprint!(
+        "\r  [{}{}] epoch {:>3}/{}  train {:.3e}  valid {:.3e}  {:>5.1} s (eta {:.0} s)",
+        "#".repeat(done),
+        ".".repeat(width - done),
+        p.epoch,
+        p.epochs,
+        p.train_loss,
+        p.valid_loss,
+        p.elapsed_s,
+        eta
+    );
+    let _ = std::io::stderr().flush();
+}
+
+/// Trains the deep attitude model, prints its validation error per horizon, saves it.
+pub fn train(
+    out: &Path,
+    quick: bool,
+    epochs: Option<usize>,
+    json: Option<&Path>,
+) -> Result<TrainedModels, String> {
+    let mut opts = if quick { TrainOptions::tiny() } else { TrainOptions::default() };
+    if let Some(e) = epochs {
+        if e == 0 {
+            return Err("--epochs must be >= 1".into());
+        }
+        opts.deep.epochs = e;
+    }
+    eprintln!(
+        "dkrrt train: {} scenes x {} runs + {} random scenes x {} bodies, {} s each; MLP {}x{} -> {} extra observables, \
+         {}-step loss, K re-solved every {} epochs",
+        opts.scenes.len(),
+        opts.runs_per_scene,
+        opts.random_runs,
+        opts.random_bodies,
+        opts.duration,
+        opts.deep.layers,
+        opts.deep.hidden,
+        opts.deep.extra,
+        opts.deep.horizon,
+        opts.deep.resolve_every
+    );
+    let t = std::time::Instant::now();
+    let m = train_models(&opts, &mut progress_bar).map_err(|e| format!("training failed: {e}"))?;
+    eprintln!();
+    let secs = t.elapsed().as_secs_f64();
+    if let Some(r) = &m.report {
+        println!(
+            "trained in {secs:.1} s ({} epochs, best {}, {} training / {} validation windows)",
+            r.epochs, r.best_epoch, r.train_windows, r.valid_windows
+        );
+    }
+    println!("validation (held-out runs, from true states; attitude error median):");
+    println!("| horizon [s] | deep [rad] | constant body rate [rad] | RMSE (q, w) | n |");
+    println!("|---|---|---|---|---|");
+    for v in &m.validation {
+        println!(
+            "| {} | {:.4} | {:.4} | {:.4} | {} |",
+            v.horizon_s, v.att_err_rad, v.cv_att_err_rad, v.rmse, v.n
+        );
+    }
+    m.save(out).map_err(|e| format!("write {}: {e}", out.display()))?;
+    let size = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
+    println!("saved {} ({size} bytes)", out.display());
+    // Read it back: what we wrote is what a predictor will load.
+    TrainedModels::load(out).map_err(|e| format!("re-reading {}: {e}", out.display()))?;
+    if let Some(j) = json {
+        let v = serde_json::json!({
+            "seconds": secs,
+            "validation": m.validation,
+            "model": out.display().to_string(),
+        });
+        std::fs::write(j, serde_json::to_string_pretty(&v).unwrap())
+            .map_err(|e| format!("write {}: {e}", j.display()))?;
+    }
+    Ok(m)
+}
+
+/// Runs the accuracy study, prints the table, writes the JSON rows.
+pub fn predict_eval(
+    size: &str,
+    model: Option<&str>,
+    scenes: Option<Vec<String>>,
+    methods: Option<Vec<String>>,
+    json: Option<&Path>,
+) -> Result<(), String> {
+    let mut cfg = match size {
+        "small" => StudyConfig::small(),
+        "full" => StudyConfig::full(),
+        _ => StudyConfig::medium(),
+    };
+    if let Some(s) = scenes {
+        for name in &s {
+            dkrrt_debris::Scene::named(name).map_err(|e| format!("--scenes: {e}"))?;
+        }
+        cfg.scenes = s;
+    }
+    if let Some(ms) = methods {
+        cfg.methods = ms
+            .iter()
+            .map(|n| {
+                Method::from_name(n).ok_or_else(|| {
+                    let all: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+                    format!("--methods: unknown method {n:?} (one of {})", all.join(", "))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    let deep = if cfg.methods.iter().any(|m| m.deep()) {
+        Some(match model {
+            Some("train") => train_models(&cfg.deep_train, &mut progress_bar).map_err(|e| e.to_string())?,
+            Some(p) => TrainedModels::load(Path::new(p)).map_err(|e| format!("--model {p}: {e}"))?,
+            None => {
+                let mut sc = dkrrt_config::Scenario::default_scenario();
+                sc.predictor.model.clear();
+                dkrrt_planner::predict::load_trained(&sc)?
+            }
+        })
+    } else {
+        None
+    };
+    let t = std::time::Instant::now();
+    let rows = run_study_with(&cfg, deep.as_ref()).map_err(|e| e.to_string())?;
+    println!("{}", markdown_table(&rows));
+    println!(
+        "{} scenes x {} methods, {} training + {} held-out runs of {} s per scene, {:.1} s",
+        cfg.scenes.len(),
+        cfg.methods.len(),
+        cfg.train_runs,
+        cfg.test_runs,
+        cfg.duration,
+        t.elapsed().as_secs_f64()
+    );
+    if let Some(j) = json {
+        std::fs::write(j, serde_json::to_string_pretty(&rows).unwrap())
+            .map_err(|e| format!("write {}: {e}", j.display()))?;
+        println!("rows: {}", j.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,120 @@
+//! The `dkrrt predictor` process on its own, driven over iceoryx2 by this test acting as
+//! the sensor: forecasts flow for the observed objects, bad items are dropped and counted
+//! one by one (the rest of their frame is used), and the process ends with the run.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use dkrrt_msg::bus::{run_config, Bus};
+use dkrrt_msg::*;
+
+#[test]
+fn the_predictor_process_forecasts_counts_bad_items_and_ends_with_the_run() {
+    let run = format!("predtest{}", std::process::id());
+    let dir = std::env::temp_dir().join(format!("dkrrt-predtest-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = dkrrt_config::DEFAULT_SCENARIO
+        .replace("mode = \"realtime\"", "mode = \"lockstep\"")
+        .replace("method = \"dual-data\"", "method = \"constant-velocity\"")
+        .replace("base_lvlh = [0.0, 0.0, 0.0]", "base_lvlh = [1.0, 0.0, -2.0]");
+    std::fs::write(dir.join("sc.toml"), text).unwrap();
+    let stats = dir.join("predictor.json");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .args(["predictor", "--run", &run, "--scenario"])
+        .arg(dir.join("sc.toml"))
+        .arg("--stats")
+        .arg(&stats)
+        .spawn()
+        .unwrap();
+    let cfg = run_config(&run).unwrap();
+    let t = Instant::now();
+    while !Bus::nodes(&cfg).unwrap().0.iter().any(|(n, _)| n == "predictor") {
+        assert!(t.elapsed() < Duration::from_secs(60), "predictor came up");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let bus = Bus::new(&run, "sensor").unwrap();
+    let mut obs_pub = bus.publisher::<DebrisObservation>(Source::Driver).unwrap();
+    let mut state_pub = bus.publisher::<RobotState>(Source::Driver).unwrap();
+    let mut fc_sub = bus.subscriber::<DebrisForecast>().unwrap();
+    let lim = ContractLimits::symmetric(3.0, 3.0, 300.0);
+
+    // Three objects moving in straight lines (base frame), 50 Hz frames for 2 s; object 2's
+    // item is NaN in every 10th frame.
+    let pos = |id: u32, t: f64| [1.0 + id as f64 + 0.05 * t, -2.0 + 0.02 * t * id as f64, 0.5];
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let mut bad = 0u64;
+    let mut fc = <DebrisForecast as Zeroed>::zeroed();
+    let mut got = 0u64;
+    for k in 0..100u64 {
+        let t = k as f64 * 0.02;
+        frame.header.stamp_ns = k * 20_000_000 + 30_000_000;
+        frame.count = 3;
+        for id in 0..3u32 {
+            let it = &mut frame.items[id as usize];
+            *it = DebrisObs {
+                id,
+                t_meas_ns: k * 20_000_000,
+                p: pos(id, t),
+                q: [1.0, 0.0, 0.0, 0.0],
+                bounding_radius: 0.3,
+                ..Default::default()
+            };
+            if id == 2 && k % 10 == 5 {
+                it.p[1] = f64::NAN;
+                bad += 1;
+            }
+        }
+        obs_pub.publish(&mut frame).unwrap();
+        std::thread::sleep(Duration::from_millis(3));
+        fc_sub
+            .for_each(&lim, |m| {
+                got += 1;
+                fc = *m;
+            })
+            .unwrap();
+    }
+    let t = Instant::now();
+    while got == 0 && t.elapsed() < Duration::from_secs(5) {
+        fc_sub.for_each(&lim, |m| fc = *m).map(|n| got += n as u64).unwrap();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(got >= 10, "forecasts received: {got}");
+    assert_eq!(fc.count, 3);
+    assert_eq!(fc_sub.rejected, 0, "{:?}", fc_sub.last_error);
+    // Constant velocity, base frame in and out: one second ahead of t0 lies on the line.
+    let t0 = fc.t0_ns as f64 * 1e-9;
+    for tr in &fc.tracks[..3] {
+        let want = pos(tr.id, t0 + 1.0);
+        let got = tr.steps[9].p;
+        let err = (0..3).map(|i| (got[i] - want[i]).powi(2)).sum::<f64>().sqrt();
+        assert!(err < 0.02, "track {} 1 s ahead: {got:?} vs {want:?}", tr.id);
+        assert_eq!(tr.bounding_radius, 0.3);
+    }
+
+    // End of the run: the predictor finishes and reports.
+    let mut st = <RobotState as Zeroed>::zeroed();
+    st.header.flags = FLAG_END_OF_RUN;
+    st.q = dkrrt_config::Scenario::default_scenario().sim.initial_q;
+    state_pub.publish(&mut st).unwrap();
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(10), "predictor ended with the run");
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    assert!(status.success());
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(r["observations"]["items_invalid"], bad, "{r:#}");
+    assert_eq!(r["rejected_observations"], bad);
+    assert_eq!(r["observations"]["items"], 300);
+    assert_eq!(r["gate"]["accepted"], 300 - bad);
+    assert!(r["forecasts"].as_u64().unwrap() >= got);
+    // Lockstep: one forecast per 1/50 s of observed plant time.
+    let rate = r["forecast_rate_hz"].as_f64().unwrap();
+    assert!((rate - 50.0).abs() < 5.0, "plant-clock forecast rate {rate}");
+    drop((obs_pub, state_pub, fc_sub, bus));
+    let _ = Bus::remove_stale(&cfg);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,106 @@
+//! `dkrrt train` and `dkrrt predict-eval` from the command line: a quick training writes a
+//! model file that the study and the predictor load; a corrupt or mismatched file is a
+//! clear error naming the file and the problem.
+
+use std::process::Command;
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_dkrrt")
+}
+
+#[test]
+fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
+    let dir = std::env::temp_dir().join(format!("dkrrt-train-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("m.dkm");
+    let out = Command::new(exe())
+        .args(["train", "--quick", "--epochs", "2", "--out"])
+        .arg(&model)
+        .arg("--json")
+        .arg(dir.join("train.json"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("| 2 |"), "validation table per horizon: {stdout}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("epoch   2/2"), "progress bar");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("train.json")).unwrap()).unwrap();
+    assert_eq!(v["validation"].as_array().unwrap().len(), 4);
+    let bytes = std::fs::read(&model).unwrap();
+    assert_eq!(&bytes[..8], b"DKRRTDKM");
+
+    // The study with that model: rows for every requested method and horizon.
+    let rows_path = dir.join("rows.json");
+    let out = Command::new(exe())
+        .args([
+            "predict-eval",
+            "--size",
+            "small",
+            "--scenes",
+            "tumbling-rods",
+            "--methods",
+            "constant-velocity,deep-koopman-online",
+            "--model",
+        ])
+        .arg(&model)
+        .arg("--json")
+        .arg(&rows_path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&rows_path).unwrap()).unwrap();
+    assert_eq!(rows.len(), 2 * 4);
+    for r in &rows {
+        assert_eq!(r["scene"], "tumbling-rods");
+        assert!(
+            r["pos_err_m"].as_f64().unwrap().is_finite() && r["att_err_rad"].as_f64().unwrap().is_finite()
+        );
+        assert!(r["n"].as_u64().unwrap() > 20);
+    }
+    assert!(rows.iter().any(|r| r["method"] == "deep-koopman-online" && r["horizon_s"] == 2.0));
+
+    // A flipped byte: the checksum catches it, the error names the file.
+    let mut bad = bytes.clone();
+    let mid = bad.len() / 2;
+    bad[mid] ^= 0x40;
+    let corrupt = dir.join("corrupt.dkm");
+    std::fs::write(&corrupt, &bad).unwrap();
+    let out = Command::new(exe())
+        .args(["predict-eval", "--size", "small", "--methods", "deep-koopman", "--model"])
+        .arg(&corrupt)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr).to_lowercase();
+    assert!(err.contains("corrupt.dkm") && err.contains("checksum"), "{err}");
+
+    // The predictor process refuses a truncated model named in the scenario.
+    std::fs::write(dir.join("short.dkm"), &bytes[..bytes.len() / 3]).unwrap();
+    let sc = dkrrt_config::DEFAULT_SCENARIO.replace("model = \"\"", "model = \"short.dkm\"");
+    assert_ne!(sc, dkrrt_config::DEFAULT_SCENARIO);
+    std::fs::write(dir.join("sc.toml"), sc).unwrap();
+    let out = Command::new(exe())
+        .args(["predictor", "--run", &format!("trcli{}", std::process::id()), "--scenario"])
+        .arg(dir.join("sc.toml"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr).to_lowercase();
+    assert!(
+        err.contains("predictor.model") && err.contains("short.dkm") && err.contains("truncated"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn predict_eval_refuses_unknown_methods_and_scenes() {
+    let out = Command::new(exe()).args(["predict-eval", "--methods", "crystal-ball"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("crystal-ball"));
+    let out = Command::new(exe()).args(["predict-eval", "--scenes", "asteroid-belt"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("asteroid-belt"));
+}
