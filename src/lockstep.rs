@@ -2,10 +2,14 @@
 //! cores as the processes, wired directly (no IPC, no clock), with the same
 //! timing contract. Deterministic: the same scenario gives the same numbers.
 
+use dkrrt_config::arm::contract_limits;
 use dkrrt_config::Scenario;
-use dkrrt_msg::{Trajectory, Zeroed, NJ};
+use dkrrt_msg::{ContractLimits, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
 use dkrrt_otg::{KinState, Limits};
 use dkrrt_planner::goto::plan;
+use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
+use dkrrt_predictor::GateStats;
+use dkrrt_sim::debris::{DebrisSide, DebrisStats};
 use dkrrt_sim::plant::{Plant, PlantConfig, PlantStats};
 use dkrrt_tracker::ctrl::{ModeEvent, Tracker, TrackerConfig};
 
@@ -21,6 +25,32 @@ pub struct EvalReport {
     pub events: Vec<ModeEvent>,
     pub plant: PlantStats,
     pub final_q: [f64; NJ],
+    /// Debris side (closest approach, contacts), `null` without debris.
+    pub debris: Option<DebrisStats>,
+    /// Predictor figures, `null` without debris.
+    pub predictor: Option<PredictorFigures>,
+}
+
+/// What the in-process predictor did.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PredictorFigures {
+    pub method: String,
+    pub forecasts: u64,
+    pub tracks: u32,
+    pub observations: ObsCounters,
+    pub gate: GateStats,
+}
+
+/// The debris side and the predictor, wired in process.
+pub struct DebrisLoop {
+    pub side: DebrisSide,
+    pub core: PredictorCore,
+    pub frame: Box<DebrisObservation>,
+    pub forecast: Box<DebrisForecast>,
+    pub forecasts: u64,
+    pub tracks: u32,
+    lim: ContractLimits,
+    rate_hz: f64,
 }
 
 /// The wired cores, stepped one tick at a time.
@@ -31,6 +61,8 @@ pub struct Lockstep {
     pub events: Vec<ModeEvent>,
     pub traj: Box<Trajectory>,
     pub traj_duration: f64,
+    pub debris: Option<DebrisLoop>,
+    dt_s: f64,
 }
 
 impl Lockstep {
@@ -38,7 +70,25 @@ impl Lockstep {
     /// initial state, starting at plant time 0.
     pub fn new(sc: &Scenario) -> Result<Lockstep, String> {
         let model = sc.load_arm().map_err(|e| e.to_string())?;
+        let debris = if sc.has_debris() {
+            Some(DebrisLoop {
+                side: DebrisSide::new(sc)?,
+                core: PredictorCore::new(fit_models(sc)?, sc),
+                frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
+                forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
+                forecasts: 0,
+                tracks: 0,
+                lim: contract_limits(&model),
+                rate_hz: sc.predictor.rate_hz,
+            })
+        } else {
+            None
+        };
         let plant = Plant::new(model.clone(), PlantConfig::from_scenario(sc), &sc.sim.initial_q);
+        let mut debris = debris;
+        if let Some(d) = debris.as_mut() {
+            d.side.check(plant.model(), &plant.true_state().0);
+        }
         let tracker = Tracker::new(model, TrackerConfig::from_scenario(sc));
         let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
         let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
@@ -59,6 +109,8 @@ impl Lockstep {
             events: Vec::with_capacity(64),
             traj,
             traj_duration: d,
+            debris,
+            dt_s: sc.period_ns() as f64 * 1e-9,
         })
     }
 
@@ -77,6 +129,24 @@ impl Lockstep {
             self.plant.offer_command(out.state_seq, &out.tau);
         }
         self.plant.step();
+        if let Some(d) = self.debris.as_mut() {
+            // As in the processes: the world advances with the plant, contacts are checked on
+            // the true arm state, observations go to the predictor, forecasts on the plant clock.
+            d.side.step(self.dt_s);
+            d.side.check(self.plant.model(), &self.plant.true_state().0);
+            let (core, lim) = (&mut d.core, &d.lim);
+            let _ = d.side.drain_observations::<()>(&mut d.frame, |f| {
+                core.observe_frame(f, lim);
+                Ok(())
+            });
+            if d.core.due_on_plant_clock(d.rate_hz) {
+                let n = d.core.forecast_into(&mut d.forecast);
+                if n > 0 {
+                    d.forecasts += 1;
+                    d.tracks = n as u32;
+                }
+            }
+        }
     }
 }
 
@@ -106,5 +176,13 @@ pub fn run(sc: &Scenario) -> Result<EvalReport, String> {
         events: ls.events.clone(),
         plant: ls.plant.stats,
         final_q: q.into(),
+        debris: ls.debris.as_ref().map(|d| d.side.stats),
+        predictor: ls.debris.as_ref().map(|d| PredictorFigures {
+            method: sc.predictor.method.clone(),
+            forecasts: d.forecasts,
+            tracks: d.tracks,
+            observations: d.core.counters,
+            gate: *d.core.gate(),
+        }),
     })
 }

@@ -13,6 +13,19 @@ fn lockstep_reaches_the_goal_and_is_deterministic() {
     assert!(a.final_error_rad < 1e-6, "{}", a.final_error_rad);
     assert_eq!(a.safe_hold_entries, 0);
     assert!(a.trajectory_duration_s > 1.0 && a.trajectory_duration_s < sc.run.duration_s);
+    // The default scene's debris runs in the same lockstep: observed, forecast, no contact.
+    let (da, db) = (a.debris.unwrap(), b.debris.unwrap());
+    assert_eq!(da, db, "debris side deterministic");
+    assert!(!da.collided());
+    assert!(da.min_distance_m.unwrap() > 0.5);
+    assert_eq!(da.ticks_checked, sc.ticks() + 1, "every tick and the start");
+    let (pa, pb) = (a.predictor.unwrap(), b.predictor.unwrap());
+    assert_eq!((pa.forecasts, pa.gate.accepted), (pb.forecasts, pb.gate.accepted));
+    // One forecast per 20 ms of plant time once tracks are mature (~0.1 s of data).
+    let expect = sc.run.duration_s * sc.predictor.rate_hz;
+    assert!(pa.forecasts as f64 > 0.9 * expect && pa.forecasts as f64 <= expect + 1.0, "{}", pa.forecasts);
+    assert_eq!(pa.tracks as usize, da.objects);
+    assert_eq!(pa.observations.rejected(), 0);
 }
 
 #[test]

@@ -115,6 +115,7 @@ pub struct PredictorCore {
     /// Newest observation time seen (plant clock), s.
     pub newest_t: f64,
     pub counters: ObsCounters,
+    next_due_s: f64,
 }
 
 impl PredictorCore {
@@ -131,6 +132,7 @@ impl PredictorCore {
             radii: heapless::Vec::new(),
             newest_t: f64::NEG_INFINITY,
             counters: ObsCounters::default(),
+            next_due_s: 0.0,
         }
     }
 
@@ -179,6 +181,16 @@ impl PredictorCore {
                 }
             }
         }
+    }
+
+    /// Plant-clock forecast schedule (lockstep runs): true once per `1/rate_hz` of observed
+    /// plant time, so the forecasts do not depend on how fast the machine is.
+    pub fn due_on_plant_clock(&mut self, rate_hz: f64) -> bool {
+        if self.newest_t < self.next_due_s {
+            return false;
+        }
+        self.next_due_s = (self.newest_t * rate_hz).floor() / rate_hz + 1.0 / rate_hz;
+        true
     }
 
     fn set_radius(&mut self, id: u32, r: f64) {

@@ -73,7 +73,6 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     let mut forecasts = 0u64;
     let mut tracks = 0u32;
     let (mut first_fc, mut last_fc) = (None::<f64>, 0.0f64);
-    let mut next_due_s = 0.0f64;
     let mut end = false;
     let mut stopped_by_signal = false;
     while !end {
@@ -94,15 +93,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             end = state.header.flags & FLAG_END_OF_RUN != 0;
         }
-        let due = if realtime {
-            true
-        } else if core.newest_t >= next_due_s {
-            next_due_s = (core.newest_t * sc.predictor.rate_hz).floor() / sc.predictor.rate_hz
-                + 1.0 / sc.predictor.rate_hz;
-            true
-        } else {
-            false
-        };
+        let due = realtime || core.due_on_plant_clock(sc.predictor.rate_hz);
         if due {
             let t0 = mono_ns();
             let n = core.forecast_into(&mut msg);
