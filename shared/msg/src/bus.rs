@@ -257,24 +257,8 @@ impl<T: Topic> Sub<T> {
     }
 
     /// Like [`Sub::latest`] but calls `f` for every valid sample in order.
-    pub fn for_each(&mut self, lim: &ContractLimits, mut f: impl FnMut(&T)) -> Result<usize, BusError> {
-        let mut n = 0;
-        while let Some(sample) =
-            self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?
-        {
-            self.received += 1;
-            match sample.payload().validate(lim) {
-                Ok(()) => {
-                    f(sample.payload());
-                    n += 1;
-                }
-                Err(e) => {
-                    self.rejected += 1;
-                    self.last_error = Some(e);
-                }
-            }
-        }
-        Ok(n)
+    pub fn for_each(&mut self, lim: &ContractLimits, f: impl FnMut(&T)) -> Result<usize, BusError> {
+        self.for_each_checked(|m| m.validate(lim), f)
     }
 }
 
