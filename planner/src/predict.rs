@@ -32,14 +32,13 @@ pub const EMBEDDED_MODEL: &[u8] = include_bytes!("../../models/deep-attitude.dkm
 /// The scenario's trained deep model: the file of `predictor.model`, or the embedded one.
 /// Errors name the field and what is wrong with the file (format, version, checksum, ...).
 pub fn load_trained(sc: &Scenario) -> Result<TrainedModels, String> {
-    let res = match sc.predictor_model_path() {
+    match sc.predictor_model_path() {
         Some(p) => TrainedModels::load(&p).map_err(|e| format!("predictor.model {}: {e}", p.display())),
         None => dkrrt_deep::from_bytes(EMBEDDED_MODEL)
             .and_then(|m| dkrrt_deep::select(m, ATTITUDE_MODEL, 7))
             .map(|attitude| TrainedModels { attitude, report: None, validation: Vec::new() })
             .map_err(|e| format!("embedded deep model: {e}")),
-    };
-    res
+    }
 }
 
 /// Observation items the core rejected before the predictor saw them (contract violations),

@@ -74,19 +74,8 @@ impl Default for TrainOptions {
             valid_runs: 1,
             valid_horizons: vec![0.5, 1.0, 2.0, 4.0],
             seed: 1_000_000,
-            deep: TrainConfig {
-                hidden: 32,
-                layers: 2,
-                extra: 16,
-                horizon: 20,
-                epochs: 30,
-                resolve_every: 5,
-                lr: 3e-3,
-                batch: 256,
-                ridge: 1e-6,
-                valid_fraction: 0.2,
-                seed: 1,
-            },
+            // The deep crate's defaults, with a smaller step (tuned on the debris attitude data).
+            deep: TrainConfig { lr: 3e-3, ..TrainConfig::default() },
         }
     }
 }
