@@ -79,13 +79,23 @@ pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
     };
     let recs = training_runs(sc, &scene)?;
     fit.frame_rate = recs.first().map_or(fit.frame_rate, |r| r.mean_motion);
-    let ts = training_set(&recs, fit.dt, fit.horizon, 1.0, &PredictorConfig::default());
+    let ts = training_set(&recs, fit.dt, fit.horizon, 1.0, &predictor_config(sc));
     if ts.n_pairs() < 10 && method.koopman() {
         return Err(format!("predictor: the scene gives too little training data ({} pairs)", ts.n_pairs()));
     }
     let deep = if method.deep() { Some(load_trained(sc)?) } else { None };
     Models::fit_with_deep(method, &ts, &fit, deep.as_ref().map(|d| &d.attitude))
         .map_err(|e| format!("predictor: fitting {}: {e}", method.name()))
+}
+
+/// Predictor settings of the scenario: the defaults with the pose filter's measurement noise
+/// taken from the scenario's sensor (`debris.pos_sigma_m`, `debris.att_sigma_rad`; a real
+/// perception driver states its own noise there).
+pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
+    let mut cfg = PredictorConfig::default();
+    cfg.filter.pos_sigma = sc.debris.pos_sigma_m.max(1e-4);
+    cfg.filter.att_sigma = sc.debris.att_sigma_rad.max(1e-4);
+    cfg
 }
 
 fn training_runs(sc: &Scenario, scene: &Scene) -> Result<Vec<Recording>, String> {
@@ -120,7 +130,7 @@ pub struct PredictorCore {
 impl PredictorCore {
     /// A core around fitted `models` (allocates once).
     pub fn new(models: Models, sc: &Scenario) -> PredictorCore {
-        let pred = DebrisPredictor::new(models, PredictorConfig::default());
+        let pred = DebrisPredictor::new(models, predictor_config(sc));
         let buf = ForecastBuffer::for_predictor(&pred);
         let steps = (sc.predictor.horizon_steps as usize).min(FORECAST_STEPS).min(buf.horizon());
         PredictorCore {

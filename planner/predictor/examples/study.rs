@@ -1,6 +1,7 @@
 //! Run the accuracy study: `cargo run --release -p dkrrt-predictor --example study -- [small|medium|full] [--json]`.
 //!
 //! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
+//! `MAN_NIS`, `MAN_WIN`, `MAN_VEL` (manoeuvre re-opening), `SEED` (master seed),
 //! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
 //! (comma-separated), `DEEP_RELIFT` (deep attitude model rolled out in relift mode), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
 //! the study trains one with `StudyConfig::deep_train` first).
@@ -25,6 +26,18 @@ fn main() {
     if let Some(v) = env("PSD_POS") {
         cfg.predictor.filter.accel_psd = v;
     }
+    if let Some(v) = env("MAN_NIS") {
+        cfg.predictor.filter.maneuver_nis = v;
+    }
+    if let Some(v) = env("MAN_WIN") {
+        cfg.predictor.filter.maneuver_window = v;
+    }
+    if let Some(v) = env("MAN_VEL") {
+        cfg.predictor.filter.maneuver_vel_sigma = v;
+    }
+    if let Some(v) = env("SEED") {
+        cfg.seed = v as u64;
+    }
     if let Some(v) = env("RLS_T_P0") {
         cfg.predictor.rls_trans.p0 = v;
     }
@@ -36,6 +49,7 @@ fn main() {
     }
     if let Some(v) = env("DUAL_RIDGE") {
         cfg.fit.dual_ridge = v;
+        cfg.fit.dual_ridge_auto = false;
     }
     if let Ok(s) = std::env::var("SCENES") {
         cfg.scenes = s.split(',').map(str::to_string).collect();

@@ -182,8 +182,12 @@ pub struct FitConfig {
     pub rbf_sigma: f64,
     /// Dual-data: number of collocation points for the nominal generator.
     pub collocation: usize,
-    /// Dual-data: ridge of the correction, per training pair (λ = `dual_ridge` · N).
+    /// Dual-data: ridge of the correction, per training pair (λ = `dual_ridge` · N), used
+    /// when `dual_ridge_auto` is off (or the data have fewer than 8 segments).
     pub dual_ridge: f64,
+    /// Dual-data: choose the ridge of each model from [`DUAL_RIDGES`] by validation on a
+    /// quarter of the training segments.
+    pub dual_ridge_auto: bool,
     /// Error bound: quantile of the validation errors.
     pub bound_quantile: f64,
     /// Error bound: margin factor.
@@ -210,6 +214,7 @@ impl Default for FitConfig {
             rbf_sigma: 1.5,
             collocation: 2000,
             dual_ridge: 1e-2,
+            dual_ridge_auto: true,
             bound_quantile: 0.95,
             bound_margin: 1.2,
             bound_stride: 5,
@@ -246,6 +251,9 @@ pub struct Models {
     pub pos_bound: ErrorBound,
     /// Attitude error bound [rad] per step.
     pub att_bound: ErrorBound,
+    /// Dual-data correction ridge per training pair actually used, translation and attitude
+    /// (`∞` = nominal generator alone; NaN where the method has no dual-data model).
+    pub dual_ridge: [f64; 2],
 }
 
 impl Models {
@@ -271,6 +279,7 @@ impl Models {
             att_rollout: Rollout::Relift,
             pos_bound: ErrorBound::constant(horizon, dt, pos_radius),
             att_bound: ErrorBound::constant(horizon, dt, att_radius),
+            dual_ridge: [f64::NAN; 2],
         }
     }
 
@@ -364,36 +373,14 @@ impl Models {
                         dk.model.dt, cfg.dt
                     )));
                 }
-                m.trans = fit_dual_translation(&m.trans_lift, &st, cfg, &mut rng)?;
+                (m.trans, m.dual_ridge[0]) = fit_dual_part(&m.trans_lift, data, Part::Trans, cfg, &mut rng)?;
                 m.att_lift = AttitudeLifting::Deep(Box::new(dk.lifting.clone()));
                 m.att = dk.model.clone();
                 m.att_rollout = cfg.deep_rollout;
             }
             Method::DualData => {
-                let n = cfg.frame_rate;
-                let nn = st.len();
-                let ridge =
-                    LstsqOptions { rel_tol: cfg.rel_tol, ridge: cfg.dual_ridge * nn as f64, max_rank: None };
-                // Collocation points: training states with a small random spread.
-                let nc = cfg.collocation.max(50);
-                let (mut xt, mut xa) = (Vec::with_capacity(nc * 6), Vec::with_capacity(nc * 7));
-                for _ in 0..nc {
-                    let k = rng.random_range(0..nn);
-                    for i in 0..6 {
-                        xt.push(st.x[k * 6 + i] + 0.1 * (rng.random::<f64>() - 0.5));
-                    }
-                    let mut a = [0.0; 7];
-                    for i in 0..7 {
-                        a[i] = sa.x[k * 7 + i] + 0.1 * (rng.random::<f64>() - 0.5);
-                    }
-                    let qn = a[..4].iter().map(|v| v * v).sum::<f64>().sqrt();
-                    a[..4].iter_mut().for_each(|v| *v /= qn);
-                    xa.extend_from_slice(&a);
-                }
-                let gt = fit_generator(&m.trans_lift, &xt, &[], 0, |x, _, dx| nominal_rhs(n, x, dx), &opts)?;
-                let ga = fit_generator(&m.att_lift, &xa, &[], 0, |x, _, dx| nominal_rhs(n, x, dx), &opts)?;
-                m.trans = fit_dual(&m.trans_lift, &gt, &st, cfg.dt, DualVariant::Corrected, &ridge)?.model;
-                m.att = fit_dual(&m.att_lift, &ga, &sa, cfg.dt, DualVariant::Corrected, &ridge)?.model;
+                (m.trans, m.dual_ridge[0]) = fit_dual_part(&m.trans_lift, data, Part::Trans, cfg, &mut rng)?;
+                (m.att, m.dual_ridge[1]) = fit_dual_part(&m.att_lift, data, Part::Rot, cfg, &mut rng)?;
             }
         }
         m.fit_bounds(data, cfg);
@@ -475,26 +462,155 @@ fn state_rows_times(cols: &[f64], z: &[f64]) -> [f64; ROWS] {
 
 /// Dual-data translation model (nominal CW generator from collocation points around the
 /// training states + ridge correction), as in [`Method::DualData`].
-fn fit_dual_translation(
-    lift: &Polynomial,
-    st: &Snapshots,
-    cfg: &FitConfig,
-    rng: &mut SmallRng,
-) -> Result<KoopmanModel, FitError> {
-    let nn = st.len();
-    let opts = LstsqOptions { rel_tol: cfg.rel_tol, ..Default::default() };
-    let ridge = LstsqOptions { rel_tol: cfg.rel_tol, ridge: cfg.dual_ridge * nn as f64, max_rank: None };
-    let nc = cfg.collocation.max(50);
-    let mut xt = Vec::with_capacity(nc * 6);
-    for _ in 0..nc {
-        let k = rng.random_range(0..nn);
-        for i in 0..6 {
-            xt.push(st.x[k * 6 + i] + 0.1 * (rng.random::<f64>() - 0.5));
+/// Ridge candidates (per training pair) of the dual-data correction `H`; `∞` = the nominal
+/// generator alone (`H = I`).
+pub const DUAL_RIDGES: [f64; 7] = [1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0, f64::INFINITY];
+
+/// Which sub-state a dual-data model predicts.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Part {
+    Trans,
+    Rot,
+}
+
+impl Part {
+    fn n(self) -> usize {
+        match self {
+            Part::Trans => 6,
+            Part::Rot => 7,
         }
     }
+    fn of(self, x: &[f64; N]) -> &[f64] {
+        match self {
+            Part::Trans => &x[debris_state::TRANS],
+            Part::Rot => &x[debris_state::ROT],
+        }
+    }
+}
+
+/// Consecutive estimate pairs of `segs` for one part (quaternion of the successor aligned).
+fn snapshots<'a>(segs: impl Iterator<Item = &'a Segment>, part: Part) -> Snapshots {
+    let mut sn = Snapshots::new(part.n(), 0);
+    for seg in segs {
+        for w in seg.est.windows(2) {
+            let mut y = [0.0; 7];
+            y[..part.n()].copy_from_slice(part.of(&w[1]));
+            if part == Part::Rot {
+                debris_state::align_quaternion(&mut y[0..4], &w[0][debris_state::QUAT]);
+            }
+            sn.push(part.of(&w[0]), &y[..part.n()], &[]);
+        }
+    }
+    sn
+}
+
+/// Validation score of a relift model of one part: median over start points (every
+/// `bound_stride` grid points with the truth known) of the summed error at 1/4, 1/2 and the
+/// whole horizon (position [m] or attitude angle [rad]) against the true state.
+fn validation_score(
+    lift: &dyn Lifting,
+    model: &KoopmanModel,
+    segs: &[&Segment],
+    part: Part,
+    cfg: &FitConfig,
+) -> f64 {
+    let h = cfg.horizon;
+    let checks = [(h / 4).max(1), (h / 2).max(1), h];
+    let n = part.n();
+    let mut phi = vec![0.0; lift.dim()];
+    let mut scores = Vec::new();
+    for seg in segs {
+        let mut s = 0;
+        while s < seg.est.len() {
+            if seg.truth.len() > s + h && seg.truth[s + 1..=s + h].iter().all(|r| r[0].is_finite()) {
+                let mut x = [0.0; 7];
+                x[..n].copy_from_slice(part.of(&seg.est[s]));
+                let mut e = 0.0;
+                for k in 1..=h {
+                    lift.lift(&x[..n], &mut phi);
+                    let mut xn = [0.0; 7];
+                    model.step_rows(n, &phi, &[], &mut xn[..n]);
+                    if part == Part::Rot {
+                        let qn = xn[..4].iter().map(|v| v * v).sum::<f64>().sqrt();
+                        xn[..4].iter_mut().for_each(|v| *v /= qn);
+                    }
+                    x = xn;
+                    if checks.contains(&k) {
+                        let t = part.of(&seg.truth[s + k]);
+                        e += match part {
+                            Part::Trans => (0..3).map(|i| (x[i] - t[i]).powi(2)).sum::<f64>().sqrt(),
+                            Part::Rot => quat_angle(&x[..4], &t[..4]),
+                        };
+                    }
+                }
+                // A diverging candidate scores as the worst.
+                scores.push(if e.is_finite() { e } else { f64::INFINITY });
+            }
+            s += cfg.bound_stride.max(1);
+        }
+    }
+    if scores.is_empty() {
+        return f64::INFINITY;
+    }
+    scores.sort_by(|a, b| a.total_cmp(b));
+    scores[scores.len() / 2]
+}
+
+/// Dual-data model of one part: nominal generator (Clohessy–Wiltshire translation / attitude
+/// kinematics with `ω̇ = 0`) from collocation points around the training states, plus the
+/// correction `H` with its ridge chosen from [`DUAL_RIDGES`] by the validation score on every
+/// fourth segment (fit on the others), then refitted on all pairs. With fewer than 8
+/// segments, or `cfg.dual_ridge_auto == false`, the ridge is `cfg.dual_ridge`.
+/// Returns the model and the chosen ridge.
+fn fit_dual_part(
+    lift: &dyn Lifting,
+    data: &TrainingSet,
+    part: Part,
+    cfg: &FitConfig,
+    rng: &mut SmallRng,
+) -> Result<(KoopmanModel, f64), FitError> {
+    let all = snapshots(data.segments.iter(), part);
+    let nn = all.len();
+    let n = part.n();
+    let opts = LstsqOptions { rel_tol: cfg.rel_tol, ..Default::default() };
+    let nc = cfg.collocation.max(50);
+    let mut xc = Vec::with_capacity(nc * n);
+    for _ in 0..nc {
+        let k = rng.random_range(0..nn);
+        let mut a = [0.0; 7];
+        for i in 0..n {
+            a[i] = all.x[k * n + i] + 0.1 * (rng.random::<f64>() - 0.5);
+        }
+        if part == Part::Rot {
+            let qn = a[..4].iter().map(|v| v * v).sum::<f64>().sqrt();
+            a[..4].iter_mut().for_each(|v| *v /= qn);
+        }
+        xc.extend_from_slice(&a[..n]);
+    }
     let w = cfg.frame_rate;
-    let gt = fit_generator(lift, &xt, &[], 0, |x, _, dx| nominal_rhs(w, x, dx), &opts)?;
-    Ok(fit_dual(lift, &gt, st, cfg.dt, DualVariant::Corrected, &ridge)?.model)
+    let gen = fit_generator(lift, &xc, &[], 0, |x, _, dx| nominal_rhs(w, x, dx), &opts)?;
+    let fit = |sn: &Snapshots, lambda: f64| -> Result<KoopmanModel, FitError> {
+        if lambda.is_infinite() {
+            return Ok(fit_dual(lift, &gen, sn, cfg.dt, DualVariant::NominalOnly, &opts)?.model);
+        }
+        let ridge = LstsqOptions { rel_tol: cfg.rel_tol, ridge: lambda * sn.len() as f64, max_rank: None };
+        Ok(fit_dual(lift, &gen, sn, cfg.dt, DualVariant::Corrected, &ridge)?.model)
+    };
+    let mut lambda = cfg.dual_ridge;
+    if cfg.dual_ridge_auto && data.segments.len() >= 8 {
+        let train =
+            snapshots(data.segments.iter().enumerate().filter(|(i, _)| i % 4 != 0).map(|(_, s)| s), part);
+        let valid: Vec<&Segment> = data.segments.iter().step_by(4).collect();
+        let mut best = (f64::INFINITY, lambda);
+        for &l in &DUAL_RIDGES {
+            let score = validation_score(lift, &fit(&train, l)?, &valid, part, cfg);
+            if score < best.0 {
+                best = (score, l);
+            }
+        }
+        lambda = best.1;
+    }
+    Ok((fit(&all, lambda)?, lambda))
 }
 
 /// Copy a column-major `p × p` matrix into columns padded to `pp = p` rounded up to 4 (zero

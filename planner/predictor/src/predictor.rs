@@ -66,7 +66,7 @@ impl Default for PredictorConfig {
             reinit_after_rejects: 10,
             track_timeout: 1.0,
             pair_tolerance: 0.005,
-            rls_trans: RlsConfig { lambda: 0.999, p0: 1e-5, max_trace: 1e6 },
+            rls_trans: RlsConfig { lambda: 0.999, p0: 1e-9, max_trace: 1e6 },
             rls_att: RlsConfig { lambda: 0.995, p0: 1.0, max_trace: 1e6 },
             rls_att_deep: RlsConfig { lambda: 0.997, p0: 100.0, max_trace: 1e8 },
             event_factor: 3.0,
@@ -132,6 +132,9 @@ pub struct GateStats {
     pub model_pairs: u64,
     /// Forecasts that left the trust region and were continued by constant velocity.
     pub forecast_fallbacks: u64,
+    /// Translation filter re-openings after a manoeuvre (impulse) was detected from the
+    /// pose innovations ([`crate::filter`]).
+    pub maneuvers: u64,
 }
 
 #[derive(Debug, Clone)]
@@ -477,7 +480,15 @@ impl DebrisPredictor {
             return ObserveOutcome::Rejected(r);
         }
         tr.rejects = 0;
+        let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
         tr.filter.update(&cfg.filter, o.t, &o.p, &q);
+        if tr.filter.maneuvers > man0 {
+            // The velocity changed: widen the position bound by the innovation, spread as a
+            // velocity error over the averaging window of the test.
+            let y = (0..3).map(|i| (o.p[i] - xprior[i]).powi(2)).sum::<f64>().sqrt();
+            tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
+            self.stats.maneuvers += 1;
+        }
         tr.n_obs += 1;
         tr.last_obs_p = o.p;
         tr.last_obs_q = q;

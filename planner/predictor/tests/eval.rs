@@ -36,3 +36,87 @@ fn small_study() {
         assert!(k < 0.9 * cv, "{m}: {k} vs constant velocity {cv}");
     }
 }
+
+mod dual_ridge {
+    use dkrrt_koopman::debris_state::N;
+    use dkrrt_koopman::Lifting;
+    use dkrrt_predictor::filter::cw_propagate;
+    use dkrrt_predictor::models::DUAL_RIDGES;
+    use dkrrt_predictor::{FitConfig, Method, Models, Segment, TrainingSet};
+
+    const N_LEO: f64 = 1.1314e-3;
+
+    /// Exact (noise-free) states of 12 objects on the 0.1 s grid: Clohessy–Wiltshire plus an
+    /// unmodelled constant along-track acceleration `accel` (drag-like), fixed attitude.
+    fn data(accel: f64) -> TrainingSet {
+        let (dt, h, len) = (0.1, 40, 200);
+        let mut segments = Vec::new();
+        for i in 0..12u32 {
+            let f = i as f64;
+            let mut x = [3.0 - 0.5 * f, 0.3 * f - 2.0, 1.0 - 0.1 * f, 0.02 * f - 0.1, 0.05 - 0.01 * f, 0.01];
+            let mut states = Vec::new();
+            for _ in 0..len + h {
+                let mut s = [0.0; N];
+                s[0..6].copy_from_slice(&x);
+                s[6] = 1.0;
+                states.push(s);
+                cw_propagate(N_LEO, dt, &mut x);
+                x[1] += 0.5 * accel * dt * dt;
+                x[4] += accel * dt;
+            }
+            segments.push(Segment { id: i, t0: 0.0, est: states[..len].to_vec(), truth: states });
+        }
+        TrainingSet { dt, horizon: h, segments }
+    }
+
+    /// Median 4 s position error of the translation model from the estimates.
+    fn err_4s(m: &Models, ts: &TrainingSet) -> f64 {
+        let mut phi = vec![0.0; m.trans_lift.dim()];
+        let mut errs = Vec::new();
+        for seg in &ts.segments {
+            for s in (0..seg.est.len()).step_by(10) {
+                let mut x = [0.0; 6];
+                x.copy_from_slice(&seg.est[s][0..6]);
+                for _ in 0..40 {
+                    m.trans_lift.lift(&x, &mut phi);
+                    let mut y = [0.0; 6];
+                    m.trans.step_rows(6, &phi, &[], &mut y);
+                    x = y;
+                }
+                let t = &seg.truth[s + 40];
+                errs.push((0..3).map(|i| (x[i] - t[i]).powi(2)).sum::<f64>().sqrt());
+            }
+        }
+        errs.sort_by(|a, b| a.total_cmp(b));
+        errs[errs.len() / 2]
+    }
+
+    #[test]
+    fn ridge_is_chosen_by_validation() {
+        let cfg = FitConfig { frame_rate: N_LEO, ..FitConfig::default() };
+        // The nominal physics is exact: whatever ridge is chosen, 4 s forecasts are exact.
+        let exact = data(0.0);
+        let m = Models::fit(Method::DualData, &exact, &cfg).unwrap();
+        assert!(
+            DUAL_RIDGES.contains(&m.dual_ridge[0]) && DUAL_RIDGES.contains(&m.dual_ridge[1]),
+            "{:?}",
+            m.dual_ridge
+        );
+        assert!(err_4s(&m, &exact) < 1e-6, "exact physics: {}", err_4s(&m, &exact));
+        // An unmodelled acceleration: validation picks a correction, which beats the nominal
+        // model alone.
+        let drag = data(2e-3);
+        let m = Models::fit(Method::DualData, &drag, &cfg).unwrap();
+        let nominal = Models::fit(
+            Method::DualData,
+            &drag,
+            &FitConfig { dual_ridge_auto: false, dual_ridge: f64::INFINITY, ..cfg },
+        )
+        .unwrap();
+        let (e, e0) = (err_4s(&m, &drag), err_4s(&nominal, &drag));
+        assert!(m.dual_ridge[0].is_finite(), "correction not chosen: {:?}", m.dual_ridge);
+        assert!(e < 0.2 * e0, "chosen ridge {}: 4 s error {e} vs nominal only {e0}", m.dual_ridge[0]);
+        // Methods without a dual-data model report none.
+        assert!(Models::fit(Method::EdmdPoly, &drag, &cfg).unwrap().dual_ridge[0].is_nan());
+    }
+}
