@@ -161,7 +161,7 @@ fn edmd_fit(c: &mut Criterion) {
     g.sample_size(10);
     let lift = Polynomial::new(7, 2);
     let mut r = SmallRng::seed_from_u64(8);
-    for n_samples in [500usize, 2000, 8000] {
+    for n_samples in [500usize, 2000, 8000, 32000] {
         let mut data = Snapshots::new(7, 0);
         for _ in 0..n_samples {
             let x: Vec<f64> = (0..7).map(|_| r.random_range(-1.0..1.0)).collect();
