@@ -2,7 +2,7 @@
 //!
 //! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
 //! `MAN_NIS`, `MAN_WIN`, `MAN_VEL` (manoeuvre re-opening), `SEED` (master seed),
-//! `RLS_T_P0`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
+//! `RLS_T_P0`, `RBF_CENTRES`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
 //! (comma-separated), `DEEP_RELIFT` (deep attitude model rolled out in relift mode), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
 //! the study trains one with `StudyConfig::deep_train` first).
 
@@ -20,36 +20,31 @@ fn main() {
         "full" => StudyConfig::full(),
         _ => StudyConfig::medium(),
     };
-    if let Some(v) = env("PSD_ATT") {
-        cfg.predictor.filter.ang_accel_psd = v;
-    }
-    if let Some(v) = env("PSD_POS") {
-        cfg.predictor.filter.accel_psd = v;
-    }
-    if let Some(v) = env("MAN_NIS") {
-        cfg.predictor.filter.maneuver_nis = v;
-    }
-    if let Some(v) = env("MAN_WIN") {
-        cfg.predictor.filter.maneuver_window = v;
-    }
-    if let Some(v) = env("MAN_VEL") {
-        cfg.predictor.filter.maneuver_vel_sigma = v;
-    }
-    if let Some(v) = env("SEED") {
-        cfg.seed = v as u64;
-    }
-    if let Some(v) = env("RLS_T_P0") {
-        cfg.predictor.rls_trans.p0 = v;
-    }
-    if let Some(v) = env("RLS_A_P0") {
-        cfg.predictor.rls_att.p0 = v;
-    }
-    if let Some(v) = env("RLS_A_LAMBDA") {
-        cfg.predictor.rls_att.lambda = v;
-    }
-    if let Some(v) = env("DUAL_RIDGE") {
-        cfg.fit.dual_ridge = v;
-        cfg.fit.dual_ridge_auto = false;
+    // Numeric overrides: (variable, setter).
+    type Set = fn(&mut StudyConfig, f64);
+    let numeric: [(&str, Set); 14] = [
+        ("PSD_ATT", |c, v| c.predictor.filter.ang_accel_psd = v),
+        ("PSD_POS", |c, v| c.predictor.filter.accel_psd = v),
+        ("MAN_NIS", |c, v| c.predictor.filter.maneuver_nis = v),
+        ("MAN_WIN", |c, v| c.predictor.filter.maneuver_window = v),
+        ("MAN_VEL", |c, v| c.predictor.filter.maneuver_vel_sigma = v),
+        ("SEED", |c, v| c.seed = v as u64),
+        ("RLS_T_P0", |c, v| c.predictor.rls_trans.p0 = v),
+        ("RLS_A_P0", |c, v| c.predictor.rls_att.p0 = v),
+        ("RLS_A_LAMBDA", |c, v| c.predictor.rls_att.lambda = v),
+        ("RLS_A_MAXTRACE", |c, v| c.predictor.rls_att.max_trace = v),
+        ("RLS_D_P0", |c, v| c.predictor.rls_att_deep.p0 = v),
+        ("RLS_D_LAMBDA", |c, v| c.predictor.rls_att_deep.lambda = v),
+        ("DUAL_RIDGE", |c, v| {
+            c.fit.dual_ridge = v;
+            c.fit.dual_ridge_auto = false;
+        }),
+        ("RBF_CENTRES", |c, v| c.fit.rbf_centres = v as usize),
+    ];
+    for (name, set) in numeric {
+        if let Some(v) = env(name) {
+            set(&mut cfg, v);
+        }
     }
     if let Ok(s) = std::env::var("SCENES") {
         cfg.scenes = s.split(',').map(str::to_string).collect();
@@ -62,15 +57,6 @@ fn main() {
     }
     if let Ok(s) = std::env::var("DEEP_MODEL") {
         cfg.deep_model = Some(s.into());
-    }
-    if let Some(v) = env("RLS_D_P0") {
-        cfg.predictor.rls_att_deep.p0 = v;
-    }
-    if let Some(v) = env("RLS_D_LAMBDA") {
-        cfg.predictor.rls_att_deep.lambda = v;
-    }
-    if let Some(v) = env("RLS_A_MAXTRACE") {
-        cfg.predictor.rls_att.max_trace = v;
     }
     eprintln!(
         "study: {} train + {} held-out runs × {} s per scene, warm-up {} s, forecasts every {} s",
