@@ -99,16 +99,6 @@ pub fn remove_stale_everywhere() -> usize {
         .sum()
 }
 
-/// Removes the small leftover files of a finished run (no node of it alive).
-fn remove_run_leftovers(run: &str) {
-    let prefix = format!("dkrrt_{run}_");
-    for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
-        if e.file_name().to_string_lossy().starts_with(&prefix) {
-            let _ = std::fs::remove_file(e.path());
-        }
-    }
-}
-
 fn status_json(p: &Proc) -> Value {
     let (code, sig) = match p.exit {
         Some(s) => (s.code(), s.signal()),
@@ -276,7 +266,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     drop(hb_sub);
     drop(bus);
     let _ = Bus::remove_stale(&cfg);
-    remove_run_leftovers(&run);
+    dkrrt_msg::bus::remove_run_leftovers(&run);
 
     let stats_of =
         |name: &str| procs.iter().find(|p| p.name == name).map_or(Value::Null, |p| read_stats(&p.stats));

@@ -21,6 +21,14 @@ static ALLOC: CountingAlloc = CountingAlloc;
 fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
     let sc = Scenario::default_scenario();
     let run = format!("alloc-{}", std::process::id());
+    // Dropped after the buses and ports below: removes the run's files from /dev/shm.
+    struct Leftovers(String);
+    impl Drop for Leftovers {
+        fn drop(&mut self) {
+            dkrrt_msg::bus::remove_run_leftovers(&self.0);
+        }
+    }
+    let _clean = Leftovers(run.clone());
     let mut ls = Lockstep::new(&sc).unwrap();
     let lim = contract_limits(ls.plant.model());
     let sim_bus = Bus::new(&run, "sim").unwrap();

@@ -116,5 +116,6 @@ fn the_predictor_process_forecasts_counts_bad_items_and_ends_with_the_run() {
     assert!((rate - 50.0).abs() < 5.0, "plant-clock forecast rate {rate}");
     drop((obs_pub, state_pub, fc_sub, bus));
     let _ = Bus::remove_stale(&cfg);
+    dkrrt_msg::bus::remove_run_leftovers(&run);
     let _ = std::fs::remove_dir_all(&dir);
 }

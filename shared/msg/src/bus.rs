@@ -183,6 +183,20 @@ impl Bus {
     }
 }
 
+/// Removes the small files a finished run leaves in `/dev/shm` (iceoryx2's per-prefix
+/// management segment, 16 bytes) once no node of run `run` is alive; call after every
+/// `Bus` of the run is dropped. Returns how many files were removed.
+pub fn remove_run_leftovers(run: &str) -> usize {
+    let prefix = format!("dkrrt_{run}_");
+    std::fs::read_dir("/dev/shm")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .filter(|e| std::fs::remove_file(e.path()).is_ok())
+        .count()
+}
+
 /// Publisher of one topic: stamps `seq`, `source` and `mono_ns` into the header.
 pub struct Pub<T: Topic> {
     port: Publisher<ipc::Service, T, ()>,

@@ -1,10 +1,29 @@
 //! Real iceoryx2 round trips through the contract's bus wrappers.
 
-use dkrrt_msg::bus::{run_config, Bus};
+use dkrrt_msg::bus::{remove_run_leftovers, run_config, Bus};
 use dkrrt_msg::*;
 
 fn run_id(tag: &str) -> String {
     format!("t{}-{tag}-{}", std::process::id(), dkrrt_rt::clock::mono_ns() % 1_000_000_000)
+}
+
+/// Removes the run's leftover files when dropped (declare before the run's buses, so it is
+/// dropped after them).
+struct Leftovers(String);
+
+impl Drop for Leftovers {
+    fn drop(&mut self) {
+        remove_run_leftovers(&self.0);
+    }
+}
+
+fn shm_files(run: &str) -> usize {
+    let prefix = format!("dkrrt_{run}_");
+    std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+        .count()
 }
 
 fn lim() -> ContractLimits {
@@ -21,6 +40,7 @@ fn state(q0: f64) -> RobotState {
 #[test]
 fn state_round_trip_stamps_header_and_validates() {
     let run = run_id("rt");
+    let _clean = Leftovers(run.clone());
     let a = Bus::new(&run, "a").unwrap();
     let b = Bus::new(&run, "b").unwrap();
     let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
@@ -50,6 +70,7 @@ fn state_round_trip_stamps_header_and_validates() {
 #[test]
 fn latest_keeps_only_the_newest_sample() {
     let run = run_id("latest");
+    let _clean = Leftovers(run.clone());
     let a = Bus::new(&run, "a").unwrap();
     let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
     let mut s = a.subscriber::<RobotState>().unwrap();
@@ -66,6 +87,7 @@ fn latest_keeps_only_the_newest_sample() {
 #[test]
 fn late_subscriber_gets_the_last_trajectory() {
     let run = run_id("hist");
+    let _clean = Leftovers(run.clone());
     let a = Bus::new(&run, "a").unwrap();
     let mut p = a.publisher::<Trajectory>(Source::TrajectorySource).unwrap();
     let mut t = Trajectory::hold(&[0.25; NJ]);
@@ -84,6 +106,7 @@ fn late_subscriber_gets_the_last_trajectory() {
 fn two_runs_never_see_each_other() {
     let r1 = run_id("iso1");
     let r2 = run_id("iso2");
+    let _clean = (Leftovers(r1.clone()), Leftovers(r2.clone()));
     let a = Bus::new(&r1, "a").unwrap();
     let b = Bus::new(&r2, "b").unwrap();
     let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
@@ -104,4 +127,23 @@ fn bad_run_ids_are_refused_with_a_reason() {
     let e = run_config("has space").unwrap_err();
     assert!(e.to_string().contains("run id"), "{e}");
     assert!(run_config("").is_err());
+}
+
+#[test]
+fn a_finished_run_leaves_no_files() {
+    let run = run_id("leftover");
+    {
+        let a = Bus::new(&run, "a").unwrap();
+        let b = Bus::new(&run, "b").unwrap();
+        let mut p = a.publisher::<RobotState>(Source::Sim).unwrap();
+        let _s = b.subscriber::<RobotState>().unwrap();
+        p.update_connections().unwrap();
+        p.publish(&mut state(0.2)).unwrap();
+    }
+    // iceoryx2 keeps its per-prefix management file after the last node is gone.
+    let before = shm_files(&run);
+    assert!(before >= 1, "expected iceoryx2's management file of the run");
+    let removed = remove_run_leftovers(&run);
+    assert_eq!(removed, before);
+    assert_eq!(shm_files(&run), 0);
 }
