@@ -89,12 +89,15 @@ pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
 }
 
 /// Predictor settings of the scenario: the defaults with the pose filter's measurement noise
-/// taken from the scenario's sensor (`debris.pos_sigma_m`, `debris.att_sigma_rad`; a real
-/// perception driver states its own noise there).
+/// taken from the scenario's sensor (`debris.pos_sigma_m`, `debris.att_sigma_rad`, and
+/// `vel_sigma_mps` / `rate_sigma_radps` for frames with rates; a real perception driver
+/// states its own noise there).
 pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
     let mut cfg = PredictorConfig::default();
     cfg.filter.pos_sigma = sc.debris.pos_sigma_m.max(1e-4);
     cfg.filter.att_sigma = sc.debris.att_sigma_rad.max(1e-4);
+    cfg.filter.vel_sigma = sc.debris.vel_sigma_mps.max(1e-5);
+    cfg.filter.rate_sigma = sc.debris.rate_sigma_radps.max(1e-5);
     cfg
 }
 

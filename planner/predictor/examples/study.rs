@@ -2,7 +2,7 @@
 //!
 //! Environment overrides (for tuning sweeps): `PSD_ATT` (filter rotational PSD), `PSD_POS`,
 //! `MAN_NIS`, `MAN_WIN`, `MAN_VEL` (manoeuvre re-opening), `SEED` (master seed),
-//! `RLS_T_P0`, `RBF_CENTRES`, `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
+//! `RLS_T_P0`, `RBF_CENTRES`, `RATES` (1 = the sensor reports rates), `RLS_A_P0`, `RLS_A_LAMBDA`, `RLS_A_MAXTRACE`, `RLS_D_P0`, `RLS_D_LAMBDA` (deep), `DUAL_RIDGE`, `SCENES`, `METHODS`
 //! (comma-separated), `DEEP_RELIFT` (deep attitude model rolled out in relift mode), `DEEP_MODEL` (pre-trained model file for the deep methods; without it
 //! the study trains one with `StudyConfig::deep_train` first).
 
@@ -22,7 +22,7 @@ fn main() {
     };
     // Numeric overrides: (variable, setter).
     type Set = fn(&mut StudyConfig, f64);
-    let numeric: [(&str, Set); 14] = [
+    let numeric: [(&str, Set); 15] = [
         ("PSD_ATT", |c, v| c.predictor.filter.ang_accel_psd = v),
         ("PSD_POS", |c, v| c.predictor.filter.accel_psd = v),
         ("MAN_NIS", |c, v| c.predictor.filter.maneuver_nis = v),
@@ -40,6 +40,7 @@ fn main() {
             c.fit.dual_ridge_auto = false;
         }),
         ("RBF_CENTRES", |c, v| c.fit.rbf_centres = v as usize),
+        ("RATES", |c, v| c.sensor.report_rates = v != 0.0),
     ];
     for (name, set) in numeric {
         if let Some(v) = env(name) {

@@ -276,10 +276,14 @@ pub struct DebrisPredictor {
 }
 
 fn finite(o: &Observation) -> bool {
-    o.t.is_finite() && o.p.iter().all(|v| v.is_finite()) && o.q.iter().all(|v| v.is_finite()) && {
-        let n2: f64 = o.q.iter().map(|v| v * v).sum();
-        (0.25..=4.0).contains(&n2)
-    }
+    o.t.is_finite()
+        && o.p.iter().all(|v| v.is_finite())
+        && o.q.iter().all(|v| v.is_finite())
+        && (!o.has_rates || o.v.iter().chain(&o.w).all(|v| v.is_finite()))
+        && {
+            let n2: f64 = o.q.iter().map(|v| v * v).sum();
+            (0.25..=4.0).contains(&n2)
+        }
 }
 
 impl DebrisPredictor {
@@ -399,6 +403,9 @@ impl DebrisPredictor {
         let nq = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         q.iter_mut().for_each(|v| *v /= nq);
         tr.filter = TrackFilter::new(&cfg.filter, o.t, &o.p, &q);
+        if o.has_rates {
+            tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
+        }
         tr.n_obs = 1;
         tr.last_obs_p = o.p;
         tr.last_obs_q = q;
@@ -482,6 +489,9 @@ impl DebrisPredictor {
         tr.rejects = 0;
         let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
         tr.filter.update(&cfg.filter, o.t, &o.p, &q);
+        if o.has_rates {
+            tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
+        }
         if tr.filter.maneuvers > man0 {
             // The velocity changed: widen the position bound by the innovation, spread as a
             // velocity error over the averaging window of the test.

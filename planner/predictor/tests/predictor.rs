@@ -41,6 +41,11 @@ fn gating_rejects_and_counts_invalid_jumps_and_out_of_order() {
     assert_eq!(pr.observe(&bad), ObserveOutcome::Rejected(RejectReason::Invalid));
     assert_eq!(pr.observe(&obs(3, f64::NAN, p, q)), ObserveOutcome::Rejected(RejectReason::Invalid));
     assert_eq!(pr.observe(&obs(3, t, p, [0.0; 4])), ObserveOutcome::Rejected(RejectReason::Invalid));
+    // Rates are checked when the observation carries them.
+    bad = obs(3, t, p, q);
+    bad.has_rates = true;
+    bad.w[2] = f64::NAN;
+    assert_eq!(pr.observe(&bad), ObserveOutcome::Rejected(RejectReason::Invalid));
     // Position jump: 1 m in 20 ms = 50 m/s > 5 m/s.
     assert_eq!(
         pr.observe(&obs(3, t, [p[0] + 1.0, p[1], p[2]], q)),
@@ -58,7 +63,7 @@ fn gating_rejects_and_counts_invalid_jumps_and_out_of_order() {
     assert_eq!(pr.observe(&obs(3, t - 0.1, p0, q0)), ObserveOutcome::Rejected(RejectReason::OutOfOrder));
     assert_eq!(pr.observe(&obs(3, t, p, q)), ObserveOutcome::Rejected(RejectReason::OutOfOrder));
     let s = *pr.stats();
-    assert_eq!((s.invalid, s.pos_jump, s.att_jump, s.out_of_order), (4, 1, 1, 2));
+    assert_eq!((s.invalid, s.pos_jump, s.att_jump, s.out_of_order), (5, 1, 1, 2));
     assert_eq!(s.accepted, 51);
     // The rejected samples did not corrupt the estimate.
     let tr = pr.track(3).unwrap();

@@ -27,6 +27,8 @@ impl Scenario {
             pos_sigma: d.pos_sigma_m,
             att_sigma: d.att_sigma_rad,
             report_rates: d.report_rates,
+            vel_sigma: d.vel_sigma_mps,
+            rate_sigma: d.rate_sigma_radps,
             dropout_prob: d.dropout,
             latency: d.latency_s,
             latency_jitter: d.latency_jitter_s,

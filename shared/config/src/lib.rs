@@ -149,6 +149,10 @@ pub struct DebrisCfg {
     pub latency_jitter_s: f64,
     /// Also report (noisy) linear and angular velocity.
     pub report_rates: bool,
+    /// Velocity noise per axis when rates are reported, m/s.
+    pub vel_sigma_mps: f64,
+    /// Body-rate noise per axis when rates are reported, rad/s.
+    pub rate_sigma_radps: f64,
     /// Sensor noise seed.
     pub seed: u64,
 }
@@ -387,6 +391,8 @@ impl Scenario {
         }
         c.non_negative("debris.pos_sigma_m", d.pos_sigma_m)?;
         c.non_negative("debris.att_sigma_rad", d.att_sigma_rad)?;
+        c.non_negative("debris.vel_sigma_mps", d.vel_sigma_mps)?;
+        c.non_negative("debris.rate_sigma_radps", d.rate_sigma_radps)?;
         if !(0.0..1.0).contains(&d.dropout) {
             return Err(c.fail("debris.dropout", d.dropout, "must be within [0, 1)"));
         }
