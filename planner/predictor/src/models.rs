@@ -185,49 +185,52 @@ impl GaussianRbf {
     pub fn n_centres(&self) -> usize {
         self.k
     }
-    /// The engine's lift (see the type's documentation): `out[..8 + k]`; with `AVX` (only
-    /// from code compiled with the `avx2` feature) the bit-identical AVX2 kernels.
+    /// The engine's lift (see the type's documentation) of `T` states at once (block by
+    /// block, the lanes' independent chains interleaved): `out[t][..8 + k]` from `x[t][..7]`;
+    /// with `AVX` (only from code compiled with the `avx2` feature) the bit-identical AVX2
+    /// kernels.
     #[inline(always)]
-    fn lift_blocks<const AVX: bool>(&self, x: &[f64], out: &mut [f64]) {
+    fn lift_blocks<const AVX: bool, const T: usize>(&self, x: &[[f64; ROWS]; T], out: &mut [Vec<f64>]) {
         let k = self.k;
-        let (head, rest) = out[..8 + k].split_at_mut(8);
-        head[..7].copy_from_slice(&x[..7]);
-        head[7] = 1.0;
-        let mut xs = [0.0; 7];
-        for i in 0..7 {
-            xs[i] = x[i] * self.inv_scale[i];
+        let out: &mut [Vec<f64>; T] = (&mut out[..T]).try_into().unwrap();
+        let mut xs = [[0.0; 7]; T];
+        for t in 0..T {
+            let o = &mut out[t][..8 + k];
+            o[..7].copy_from_slice(&x[t][..7]);
+            o[7] = 1.0;
+            for i in 0..7 {
+                xs[t][i] = x[t][i] * self.inv_scale[i];
+            }
         }
-        let mut chunks = rest.chunks_exact_mut(4);
-        let mut blocks = self.cs.chunks_exact(28).map(|b| -> &[f64; 28] { b.try_into().unwrap() });
+        let full = k / 4;
+        let blocks = self.cs.chunks_exact(28).map(|b| -> &[f64; 28] { b.try_into().unwrap() });
         #[cfg(target_arch = "x86_64")]
         if AVX {
-            use std::arch::x86_64::{_mm256_set1_pd, _mm256_storeu_pd};
+            use std::arch::x86_64::_mm256_storeu_pd;
             // SAFETY: `AVX` is only set by `Engine::roll_avx2` (AVX2 checked at run time);
-            // every `o` has 4 entries.
+            // the stores write `out[t][8 + 4b..12 + 4b]`, `b < k / 4`.
             unsafe {
-                let xv = xs.map(|v| _mm256_set1_pd(v));
-                let g = _mm256_set1_pd(self.g);
-                for (o, blk) in (&mut chunks).zip(&mut blocks) {
-                    _mm256_storeu_pd(o.as_mut_ptr(), kernels::avx2::rbf_block(&xv, blk, g));
-                }
-                let tail = chunks.into_remainder();
-                if let Some(blk) = blocks.next().filter(|_| !tail.is_empty()) {
-                    let mut e = [0.0; 4];
-                    _mm256_storeu_pd(e.as_mut_ptr(), kernels::avx2::rbf_block(&xv, blk, g));
-                    let m = tail.len();
-                    tail.copy_from_slice(&e[..m]);
+                for (b, blk) in blocks.enumerate() {
+                    let es = kernels::avx2::rbf_lanes::<T>(&xs, blk, self.g);
+                    for (t, &e) in es.iter().enumerate() {
+                        if b < full {
+                            _mm256_storeu_pd(out[t][8 + 4 * b..12 + 4 * b].as_mut_ptr(), e);
+                        } else {
+                            let mut v = [0.0; 4];
+                            _mm256_storeu_pd(v.as_mut_ptr(), e);
+                            out[t][8 + 4 * b..8 + k].copy_from_slice(&v[..k - 4 * b]);
+                        }
+                    }
                 }
             }
             return;
         }
-        for (o, blk) in (&mut chunks).zip(&mut blocks) {
-            o.copy_from_slice(&kernels::rbf_block(&xs, blk, self.g));
-        }
-        let tail = chunks.into_remainder();
-        if let Some(blk) = blocks.next().filter(|_| !tail.is_empty()) {
-            let e = kernels::rbf_block(&xs, blk, self.g);
-            let m = tail.len();
-            tail.copy_from_slice(&e[..m]);
+        for (b, blk) in blocks.enumerate() {
+            for t in 0..T {
+                let e = kernels::rbf_block(&xs[t], blk, self.g);
+                let m = (k - 4 * b).min(4);
+                out[t][8 + 4 * b..8 + 4 * b + m].copy_from_slice(&e[..m]);
+            }
         }
     }
 }
@@ -552,9 +555,20 @@ impl Models {
 /// [`ROWS`] entries (zero padded): `dst[j·8 + i] = A[i, j]`.
 fn load_state_rows(model: &KoopmanModel, dst: &mut [f64]) {
     let (n, p) = (model.n, model.p);
+    assert!(n <= ROWS);
+    // Whole 8-entry columns built in registers (no per-column memcpy / memset calls).
     for (d, col) in dst[..p * ROWS].chunks_exact_mut(ROWS).zip(model.ab.chunks_exact(p)) {
-        d[..n].copy_from_slice(&col[..n]);
-        d[n..].fill(0.0);
+        let mut v = [0.0; ROWS];
+        match n {
+            6 => v[..6].copy_from_slice(&col[..6]),
+            7 => v[..7].copy_from_slice(&col[..7]),
+            _ => {
+                for i in 0..n {
+                    v[i] = col[i];
+                }
+            }
+        }
+        d.copy_from_slice(&v);
     }
 }
 
@@ -599,9 +613,23 @@ fn fit_dual_translation(
 fn load_lifted(model: &KoopmanModel, dst: &mut [f64]) -> usize {
     let p = model.p;
     let pp = p.next_multiple_of(4);
+    let full = p / 4;
+    // Fixed-size pieces (no per-column memcpy / memset calls).
     for (d, col) in dst[..p * pp].chunks_exact_mut(pp).zip(model.ab.chunks_exact(p)) {
-        d[..p].copy_from_slice(col);
-        d[p..].fill(0.0);
+        for (dc, cc) in d[..4 * full].chunks_exact_mut(4).zip(col.chunks_exact(4)) {
+            let cc: &[f64; 4] = cc.try_into().unwrap();
+            dc.copy_from_slice(cc);
+        }
+        let mut v = [0.0; 4];
+        match p % 4 {
+            1 => v[..1].copy_from_slice(&col[4 * full..]),
+            2 => v[..2].copy_from_slice(&col[4 * full..]),
+            3 => v[..3].copy_from_slice(&col[4 * full..]),
+            _ => {}
+        }
+        if pp > 4 * full {
+            d[4 * full..].copy_from_slice(&v);
+        }
     }
     pp
 }
@@ -694,8 +722,8 @@ pub struct Engine {
     pub portable: bool,
 }
 
-/// Tracks rolled out in lockstep by [`Engine::run2`].
-const LANES: usize = 2;
+/// Most tracks rolled out in lockstep ([`Engine::run_lanes`]).
+const LANES: usize = 4;
 
 /// One track of [`Engine::run2`]: its (possibly per-track refined) models, start state and
 /// output rows.
@@ -813,18 +841,23 @@ impl Engine {
                 };
                 xt[t][6] = 1.0;
             }
-            for t in 0..T {
-                xa[t] = if linear {
-                    let head = lifted_step::<AVX>(&ka[t], pa, pp, &za[t], &mut zn[t]);
+            if linear {
+                for t in 0..T {
+                    xa[t] = lifted_step::<AVX>(&ka[t], pa, pp, &za[t], &mut zn[t]);
                     std::mem::swap(&mut za[t], &mut zn[t]);
-                    head
-                } else {
-                    match &models.att_lift {
-                        AttitudeLifting::Rbf(l) => l.lift_blocks::<AVX>(&xa[t][..7], &mut za[t]),
-                        l => l.lift(&xa[t][..7], &mut za[t]),
+                }
+            } else {
+                match &models.att_lift {
+                    AttitudeLifting::Rbf(l) => l.lift_blocks::<AVX, T>(&xa, &mut za[..]),
+                    l => {
+                        for t in 0..T {
+                            l.lift(&xa[t][..7], &mut za[t]);
+                        }
                     }
-                    state_rows_times::<AVX>(&ca[t], &za[t][..pa])
-                };
+                }
+                for t in 0..T {
+                    xa[t] = state_rows_times::<AVX>(&ca[t], &za[t][..pa]);
+                }
             }
             for t in 0..T {
                 // Unit quaternion (as `StateConstraint::UnitQuaternion`, same operations).
@@ -948,22 +981,38 @@ impl Engine {
     /// [`Engine::run`] for two tracks at once (same results as two calls: the tracks are
     /// rolled out in lockstep so that their dependency chains overlap).
     pub fn run2(&mut self, models: &Models, a: Job<'_>, b: Job<'_>, h: usize) {
-        let (oa, ob) = (&mut a.out[..h * N], &mut b.out[..h * N]);
+        self.run_lanes::<2>(models, [a, b], h)
+    }
+
+    /// [`Engine::run`] for `T ≤ 4` tracks at once (same results as `T` calls: the tracks are
+    /// rolled out in lockstep so that their dependency chains overlap).
+    pub fn run_lanes<const T: usize>(&mut self, models: &Models, jobs: [Job<'_>; T], h: usize) {
+        assert!(T >= 1 && T <= LANES, "Engine::run_lanes: 1 ≤ T ≤ {LANES}");
+        let mut x0 = [&[][..]; T];
+        let mut jobs = jobs.map(|j| (j.trans, j.att, j.x0, j.out));
         if models.method == Method::ConstantVelocity {
             let cv = ConstantVelocity { frame_rate: models.frame_rate };
-            cv.forecast(a.x0, models.dt, oa);
-            cv.forecast(b.x0, models.dt, ob);
+            for (_, _, x, o) in jobs.iter_mut() {
+                cv.forecast(x, models.dt, &mut o[..h * N]);
+            }
             return;
         }
-        assert!(a.trans.p == b.trans.p && a.att.p == b.att.p, "Engine::run2: different model sizes");
-        self.load(models, 0, a.trans, a.att);
-        self.load(models, 1, b.trans, b.att);
-        let bad = self.roll_dispatch::<2>(models, a.trans.p, a.att.p, [a.x0, b.x0], [&mut *oa, &mut *ob]);
-        if let Some(k) = bad[0] {
-            self.fallback(models, a.x0, oa, k);
+        let (pt, pa) = (jobs[0].0.p, jobs[0].1.p);
+        for t in 0..T {
+            let (trans, att, x, _) = &jobs[t];
+            assert!(trans.p == pt && att.p == pa, "Engine::run_lanes: different model sizes");
+            self.load(models, t, trans, att);
+            x0[t] = x;
         }
-        if let Some(k) = bad[1] {
-            self.fallback(models, b.x0, ob, k);
+        let bad = {
+            let rows: [&mut [f64]; T] = jobs.each_mut().map(|j| &mut j.3[..h * N]);
+            self.roll_dispatch::<T>(models, pt, pa, x0, rows)
+        };
+        let outs = jobs.map(|j| j.3);
+        for t in 0..T {
+            if let Some(k) = bad[t] {
+                self.fallback(models, x0[t], &mut outs[t][..h * N], k);
+            }
         }
     }
 }

@@ -571,7 +571,7 @@ impl DebrisPredictor {
         let h = buf.h.min(self.models.horizon);
         assert!((buf.dt - self.models.dt).abs() < 1e-12, "forecast buffer dt differs from the model dt");
         let hb = buf.h;
-        // Tracks to forecast; rolled out two at a time (overlapping dependency chains).
+        // Tracks to forecast; rolled out four at a time (overlapping dependency chains).
         let mut sel = [0u16; MAX_TRACKS];
         let mut n = 0;
         for (i, tr) in self.tracks.iter().enumerate() {
@@ -580,16 +580,20 @@ impl DebrisPredictor {
                 n += 1;
             }
         }
-        for (pair, rows) in sel[..n].chunks(2).zip(buf.states.chunks_mut(2 * hb * N)) {
-            if let [i, j] = *pair {
-                let (ra, rb) = rows.split_at_mut(hb * N);
-                let (ta, tb) = (&self.tracks[i as usize], &self.tracks[j as usize]);
-                let a = Job { trans: &ta.trans, att: &ta.att, x0: &ta.filter.x, out: ra };
-                let b = Job { trans: &tb.trans, att: &tb.att, x0: &tb.filter.x, out: rb };
-                self.engine.run2(&self.models, a, b, h);
-            } else {
-                let tr = &self.tracks[pair[0] as usize];
-                self.engine.run(&self.models, &tr.trans, &tr.att, &tr.filter.x, h, &mut rows[..h * N]);
+        for (group, rows) in sel[..n].chunks(4).zip(buf.states.chunks_mut(4 * hb * N)) {
+            let tracks = &self.tracks;
+            let mut rows = rows.chunks_mut(hb * N);
+            let mut job = |i: u16| {
+                let tr = &tracks[i as usize];
+                Job { trans: &tr.trans, att: &tr.att, x0: &tr.filter.x, out: rows.next().unwrap() }
+            };
+            let m = &self.models;
+            match *group {
+                [a, b, c, d] => self.engine.run_lanes::<4>(m, [job(a), job(b), job(c), job(d)], h),
+                [a, b, c] => self.engine.run_lanes::<3>(m, [job(a), job(b), job(c)], h),
+                [a, b] => self.engine.run_lanes::<2>(m, [job(a), job(b)], h),
+                [a] => self.engine.run_lanes::<1>(m, [job(a)], h),
+                _ => unreachable!(),
             }
         }
         for (k, &i) in sel[..n].iter().enumerate() {

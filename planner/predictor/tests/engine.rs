@@ -104,8 +104,9 @@ fn deep_models() -> Vec<TrainedModels> {
 }
 
 /// The AVX2 code path (where the CPU has it) and the portable path give bit-identical
-/// forecasts, and so do the two-track lockstep roll-out (`run2`) and single `run`s, for every
-/// method, including starts that leave the trust region (constant-velocity fallback).
+/// forecasts, and so do the lockstep roll-outs of 2, 3 and 4 tracks (`run2`, `run_lanes`) and
+/// single `run`s, for every method, including starts that leave the trust region
+/// (constant-velocity fallback).
 #[test]
 fn code_paths_and_lanes_are_bit_identical() {
     let rec = record(&free_rods(7), SensorConfig::default(), 4.0, 0.01, 7).unwrap();
@@ -121,7 +122,7 @@ fn code_paths_and_lanes_are_bit_identical() {
     let mut s = starts[2];
     s[12] = f64::NAN;
     starts.push(s);
-    if starts.len() % 2 == 1 {
+    while starts.len() % 4 != 0 {
         starts.push(starts[3]);
     }
     let deep = deep_models();
@@ -145,20 +146,35 @@ fn code_paths_and_lanes_are_bit_identical() {
         let mut port = Engine::new(m);
         port.portable = true;
         let mut single = Engine::new(m);
-        let mut outs = vec![vec![0.0; h * N]; 6];
-        for p in starts.chunks_exact(2) {
-            let [o0, o1, o2, o3, o4, o5] = &mut outs[..] else { unreachable!() };
-            fast.run(m, &m.trans, &m.att, &p[0], h, o0);
-            port.run(m, &m.trans, &m.att, &p[0], h, o1);
-            let job = |x0, out| Job { trans: &m.trans, att: &m.att, x0, out };
-            fast.run2(m, job(&p[0], o2), job(&p[1], o3), h);
-            port.run2(m, job(&p[0], o4), job(&p[1], o5), h);
-            for o in [&*o1, &*o2, &*o4] {
-                assert_eq!(bits(o0), bits(o), "{:?}: start 0 differs between paths", m.method);
+        let mut want = vec![vec![0.0; h * N]; 4];
+        let mut got = vec![vec![0.0; h * N]; 4];
+        for p in starts.chunks_exact(4) {
+            for (x0, o) in p.iter().zip(&mut want) {
+                single.run(m, &m.trans, &m.att, x0, h, o);
             }
-            single.run(m, &m.trans, &m.att, &p[1], h, o0);
-            for o in [&*o3, &*o5] {
-                assert_eq!(bits(o0), bits(o), "{:?}: start 1 differs between paths", m.method);
+            for eng in [&mut fast, &mut port] {
+                // One track on the other path, then 2, 3 and 4 in lockstep.
+                let [g0, g1, ..] = &mut got[..] else { unreachable!() };
+                eng.run(m, &m.trans, &m.att, &p[0], h, g0);
+                assert_eq!(bits(&want[0]), bits(g0), "{:?}: run differs between paths", m.method);
+                eng.run2(m, job(m, &p[0], g0), job(m, &p[1], g1), h);
+                for t in 0..2 {
+                    assert_eq!(bits(&want[t]), bits(&got[t]), "{:?}: run2 lane {t} differs", m.method);
+                }
+                let [g0, g1, g2, _] = &mut got[..] else { unreachable!() };
+                eng.run_lanes::<3>(m, [job(m, &p[0], g0), job(m, &p[1], g1), job(m, &p[2], g2)], h);
+                for t in 0..3 {
+                    assert_eq!(bits(&want[t]), bits(&got[t]), "{:?}: 3 lanes, lane {t} differs", m.method);
+                }
+                let [g0, g1, g2, g3] = &mut got[..] else { unreachable!() };
+                eng.run_lanes::<4>(
+                    m,
+                    [job(m, &p[0], g0), job(m, &p[1], g1), job(m, &p[2], g2), job(m, &p[3], g3)],
+                    h,
+                );
+                for t in 0..4 {
+                    assert_eq!(bits(&want[t]), bits(&got[t]), "{:?}: 4 lanes, lane {t} differs", m.method);
+                }
             }
         }
         assert_eq!(fast.fallbacks, port.fallbacks);
@@ -166,4 +182,8 @@ fn code_paths_and_lanes_are_bit_identical() {
             assert!(fast.fallbacks >= 3, "{:?}: {} fallbacks", m.method, fast.fallbacks);
         }
     }
+}
+
+fn job<'a>(m: &'a Models, x0: &'a [f64], out: &'a mut [f64]) -> Job<'a> {
+    Job { trans: &m.trans, att: &m.att, x0, out }
 }
