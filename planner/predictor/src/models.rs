@@ -688,8 +688,15 @@ fn lifted_step<const AVX: bool>(a: &[f64], p: usize, pp: usize, z: &[f64], out: 
 /// `x⁺ = (A φ(x))[..n]` (translation; attitude of the dictionary methods): the `n` state rows
 /// are copied once per call into padded columns (`8` entries), so a step is one lift plus `p`
 /// 8-wide multiply-adds. Linear mode (deep attitude model): `z⁺ = A z` from `z₀ = φ(x₀)`,
-/// decoded `x = z[..7]`. The decoded quaternion is renormalised every step (the lifted
-/// state `z` is left as is).
+/// decoded `x = z[..7]`, `A` copied once per call into columns padded to a multiple of 4.
+/// The decoded quaternion is renormalised every step (the lifted state `z` is left as is).
+///
+/// Speed: [`Engine::run_lanes`] rolls up to 4 tracks out in lockstep (their dependency
+/// chains overlap; [`crate::DebrisPredictor::forecast`] uses it), the dense kernels
+/// (`kernels.rs`) have AVX2 versions selected at run time, and the Gaussian RBF lift
+/// computes 4 centres per vector for all lanes at once. Every code path and lane count gives
+/// bit-identical results (no FMA; tests `code_paths_and_lanes_are_bit_identical` and the
+/// kernel unit tests).
 ///
 /// Trust region: a Koopman roll-out started outside the training distribution (e.g. a
 /// noisy rate estimate of a fresh track) can diverge polynomially. From the first step whose
