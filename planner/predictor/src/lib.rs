@@ -20,13 +20,14 @@
 
 pub mod eval;
 pub mod filter;
+mod kernels;
 pub mod models;
 pub mod predictor;
 pub mod training;
 
 pub use eval::{run_study, StudyConfig, StudyRow};
 pub use filter::{FilterConfig, TrackFilter};
-pub use models::{AttitudeLifting, FitConfig, Method, Models, Segment, TrainingSet};
+pub use models::{AttitudeLifting, FitConfig, GaussianRbf, Method, Models, Segment, TrainingSet};
 pub use predictor::{
     DebrisPredictor, ForecastBuffer, GateStats, ObserveOutcome, PredictorConfig, RejectReason, TrackInfo,
     MAX_TRACKS,

@@ -7,11 +7,12 @@
 //! with the quaternion renormalised every step.
 
 use crate::filter::quat_angle;
+use crate::kernels::{self, ROWS};
 use dkrrt_deep::{DeepKoopman, DeepLifting};
 use dkrrt_koopman::debris_state::{self, attitude_dictionary, nominal_rhs, N};
 use dkrrt_koopman::{
     fit_dual, fit_edmd, fit_generator, ConstantVelocity, DualVariant, ErrorBound, FitError, KoopmanModel,
-    Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Rollout, Snapshots, StateConstraint, MAX_HORIZON,
+    Lifting, LstsqOptions, Polynomial, Rbf, RbfKind, Rollout, Snapshots, MAX_HORIZON,
 };
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -94,8 +95,8 @@ impl Method {
 pub enum AttitudeLifting {
     /// Polynomial (e.g. [`attitude_dictionary`]).
     Poly(Polynomial),
-    /// Radial basis functions.
-    Rbf(Rbf),
+    /// Gaussian radial basis functions.
+    Rbf(GaussianRbf),
     /// Learned MLP lifting of `dkrrt-deep` (boxed: fixed parameter arrays).
     Deep(Box<DeepLifting>),
 }
@@ -129,6 +130,124 @@ impl Lifting for AttitudeLifting {
             AttitudeLifting::Rbf(l) => l.lift_derivative(x, xdot, out),
             AttitudeLifting::Deep(l) => l.lift_derivative(x, xdot, out),
         }
+    }
+}
+
+/// Gaussian RBF dictionary of the attitude state `(q, ω)` (n = 7):
+/// `[x, 1, exp(−‖(x − c_k) ⊘ s‖² / (2σ²)) for each centre c_k]`.
+///
+/// Wraps the reference [`Rbf`] of `dkrrt-koopman` (used by the fits, [`Lifting::lift`] and
+/// `observe`) and keeps the scaled centres in blocks of 4 for the roll-out [`Engine`], whose
+/// lift computes 4 centres per vector and all 7 coordinates in registers. The squared
+/// distances are bit-identical to the reference; the exponential is
+/// [`dkrrt_koopman::exp_fast`] without FMA in every code path (the reference uses FMA where
+/// the CPU has it: ≤ 1 ulp apart).
+#[derive(Debug, Clone)]
+pub struct GaussianRbf {
+    rbf: Rbf,
+    k: usize,
+    inv_scale: [f64; 7],
+    /// `cs[(b·7 + i)·4 + l] = c_{4b+l}[i] / s_i` (the last block padded with copies of the
+    /// last centre; padded lanes are never stored).
+    cs: Vec<f64>,
+    /// `−1 / (2σ²)`.
+    g: f64,
+}
+
+impl GaussianRbf {
+    /// `centres` is `k × 7` row-major (k ≥ 1), `scale` the per-coordinate distance scale.
+    pub fn new(centres: Vec<f64>, scale: &[f64], sigma: f64) -> Self {
+        assert!(!centres.is_empty() && centres.len() % 7 == 0, "GaussianRbf: centres must be k × 7");
+        assert_eq!(scale.len(), 7, "GaussianRbf: scale must have 7 entries");
+        let k = centres.len() / 7;
+        let mut inv_scale = [0.0; 7];
+        for i in 0..7 {
+            inv_scale[i] = 1.0 / scale[i];
+        }
+        let nb = k.div_ceil(4);
+        let mut cs = vec![0.0; nb * 28];
+        for b in 0..nb {
+            for i in 0..7 {
+                for l in 0..4 {
+                    let c = (4 * b + l).min(k - 1);
+                    cs[(b * 7 + i) * 4 + l] = centres[c * 7 + i] * inv_scale[i];
+                }
+            }
+        }
+        let rbf = Rbf::new(7, centres, RbfKind::Gaussian { sigma }).with_scale(scale);
+        GaussianRbf { rbf, k, inv_scale, cs, g: -1.0 / (2.0 * sigma * sigma) }
+    }
+    /// The reference dictionary.
+    pub fn rbf(&self) -> &Rbf {
+        &self.rbf
+    }
+    /// Number of centres.
+    pub fn n_centres(&self) -> usize {
+        self.k
+    }
+    /// The engine's lift (see the type's documentation) of `T` states at once (block by
+    /// block, the lanes' independent chains interleaved): `out[t][..8 + k]` from `x[t][..7]`;
+    /// with `AVX` (only from code compiled with the `avx2` feature) the bit-identical AVX2
+    /// kernels.
+    #[inline(always)]
+    fn lift_blocks<const AVX: bool, const T: usize>(&self, x: &[[f64; ROWS]; T], out: &mut [Vec<f64>]) {
+        let k = self.k;
+        let out: &mut [Vec<f64>; T] = (&mut out[..T]).try_into().unwrap();
+        let mut xs = [[0.0; 7]; T];
+        for t in 0..T {
+            let o = &mut out[t][..8 + k];
+            o[..7].copy_from_slice(&x[t][..7]);
+            o[7] = 1.0;
+            for i in 0..7 {
+                xs[t][i] = x[t][i] * self.inv_scale[i];
+            }
+        }
+        let full = k / 4;
+        let blocks = self.cs.chunks_exact(28).map(|b| -> &[f64; 28] { b.try_into().unwrap() });
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            use std::arch::x86_64::_mm256_storeu_pd;
+            // SAFETY: `AVX` is only set by `Engine::roll_avx2` (AVX2 checked at run time);
+            // the stores write `out[t][8 + 4b..12 + 4b]`, `b < k / 4`.
+            unsafe {
+                for (b, blk) in blocks.enumerate() {
+                    let es = kernels::avx2::rbf_lanes::<T>(&xs, blk, self.g);
+                    for (t, &e) in es.iter().enumerate() {
+                        if b < full {
+                            _mm256_storeu_pd(out[t][8 + 4 * b..12 + 4 * b].as_mut_ptr(), e);
+                        } else {
+                            let mut v = [0.0; 4];
+                            _mm256_storeu_pd(v.as_mut_ptr(), e);
+                            out[t][8 + 4 * b..8 + k].copy_from_slice(&v[..k - 4 * b]);
+                        }
+                    }
+                }
+            }
+            return;
+        }
+        for (b, blk) in blocks.enumerate() {
+            for t in 0..T {
+                let e = kernels::rbf_block(&xs[t], blk, self.g);
+                let m = (k - 4 * b).min(4);
+                out[t][8 + 4 * b..8 + 4 * b + m].copy_from_slice(&e[..m]);
+            }
+        }
+    }
+}
+
+impl Lifting for GaussianRbf {
+    fn state_dim(&self) -> usize {
+        7
+    }
+    fn dim(&self) -> usize {
+        8 + self.k
+    }
+    #[inline]
+    fn lift(&self, x: &[f64], out: &mut [f64]) {
+        self.rbf.lift(x, out)
+    }
+    fn lift_derivative(&self, x: &[f64], xdot: &[f64], out: &mut [f64]) {
+        self.rbf.lift_derivative(x, xdot, out)
     }
 }
 
@@ -350,8 +469,7 @@ impl Models {
                     let k = rng.random_range(0..nn);
                     centres.extend_from_slice(&sa.x[k * 7..(k + 1) * 7]);
                 }
-                let rbf = Rbf::new(7, centres, RbfKind::Gaussian { sigma: cfg.rbf_sigma }).with_scale(&scale);
-                m.att_lift = AttitudeLifting::Rbf(rbf);
+                m.att_lift = AttitudeLifting::Rbf(GaussianRbf::new(centres, &scale, cfg.rbf_sigma));
                 m.att = fit_edmd(&m.att_lift, &sa, cfg.dt, &opts)?.0;
             }
             Method::DeepKoopman | Method::DeepKoopmanOnline => {
@@ -420,44 +538,37 @@ impl Models {
     }
 }
 
-/// Padded row count of the state-row kernels (translation n = 6, attitude n = 7).
-const ROWS: usize = 8;
-
 /// Copy the `n ≤ 8` state rows of `[A B]` (column-major) into `dst` as `p` columns of
 /// [`ROWS`] entries (zero padded): `dst[j·8 + i] = A[i, j]`.
 fn load_state_rows(model: &KoopmanModel, dst: &mut [f64]) {
     let (n, p) = (model.n, model.p);
-    for (j, d) in dst[..p * ROWS].chunks_exact_mut(ROWS).enumerate() {
-        for i in 0..ROWS {
-            d[i] = if i < n { model.ab[j * p + i] } else { 0.0 };
+    assert!(n <= ROWS);
+    // Whole 8-entry columns built in registers (no per-column memcpy / memset calls).
+    for (d, col) in dst[..p * ROWS].chunks_exact_mut(ROWS).zip(model.ab.chunks_exact(p)) {
+        let mut v = [0.0; ROWS];
+        match n {
+            6 => v[..6].copy_from_slice(&col[..6]),
+            7 => v[..7].copy_from_slice(&col[..7]),
+            _ => {
+                for i in 0..n {
+                    v[i] = col[i];
+                }
+            }
         }
+        d.copy_from_slice(&v);
     }
 }
 
-/// `Σ_j cols[j] · z[j]` over the padded state-row columns (two accumulator sets for ILP;
-/// fixed-size inner loops vectorise).
+/// [`kernels::state_rows`], with `AVX` (only from code compiled with the `avx2` feature) its
+/// bit-identical AVX2 version.
 #[inline(always)]
-fn state_rows_times(cols: &[f64], z: &[f64]) -> [f64; ROWS] {
-    let (mut a0, mut a1) = ([0.0; ROWS], [0.0; ROWS]);
-    let p = z.len();
-    let pairs = p / 2;
-    for (c, zz) in cols[..pairs * 2 * ROWS].chunks_exact(2 * ROWS).zip(z.chunks_exact(2)) {
-        let (c0, c1) = c.split_at(ROWS);
-        for i in 0..ROWS {
-            a0[i] += c0[i] * zz[0];
-            a1[i] += c1[i] * zz[1];
-        }
+fn state_rows_times<const AVX: bool>(cols: &[f64], z: &[f64]) -> [f64; ROWS] {
+    #[cfg(target_arch = "x86_64")]
+    if AVX {
+        // SAFETY: `AVX` is only set by `Engine::roll_avx2` (AVX2 checked at run time).
+        return unsafe { kernels::avx2::state_rows(cols, z) };
     }
-    if p % 2 == 1 {
-        let c = &cols[(p - 1) * ROWS..p * ROWS];
-        for i in 0..ROWS {
-            a0[i] += c[i] * z[p - 1];
-        }
-    }
-    for i in 0..ROWS {
-        a0[i] += a1[i];
-    }
-    a0
+    kernels::state_rows(cols, z)
 }
 
 /// Dual-data translation model (nominal CW generator from collocation points around the
@@ -618,49 +729,73 @@ fn fit_dual_part(
 fn load_lifted(model: &KoopmanModel, dst: &mut [f64]) -> usize {
     let p = model.p;
     let pp = p.next_multiple_of(4);
-    for (j, d) in dst[..p * pp].chunks_exact_mut(pp).enumerate() {
-        for i in 0..pp {
-            d[i] = if i < p { model.ab[j * p + i] } else { 0.0 };
+    let full = p / 4;
+    // Fixed-size pieces (no per-column memcpy / memset calls).
+    for (d, col) in dst[..p * pp].chunks_exact_mut(pp).zip(model.ab.chunks_exact(p)) {
+        for (dc, cc) in d[..4 * full].chunks_exact_mut(4).zip(col.chunks_exact(4)) {
+            let cc: &[f64; 4] = cc.try_into().unwrap();
+            dc.copy_from_slice(cc);
+        }
+        let mut v = [0.0; 4];
+        match p % 4 {
+            1 => v[..1].copy_from_slice(&col[4 * full..]),
+            2 => v[..2].copy_from_slice(&col[4 * full..]),
+            3 => v[..3].copy_from_slice(&col[4 * full..]),
+            _ => {}
+        }
+        if pp > 4 * full {
+            d[4 * full..].copy_from_slice(&v);
         }
     }
     pp
 }
 
 /// `out[..pp] = A z` with `A` as written by [`load_lifted`] (padding rows stay 0; the sums run
-/// over `j` in order, bit-identical to the unpadded column axpys). Common padded sizes use a
-/// fixed-size accumulator that stays in registers.
+/// over `j` in order, bit-identical to the unpadded column axpys); returns `out[..8]`. Common padded sizes use a
+/// fixed-size accumulator that stays in registers ([`kernels::lifted`]; with `AVX`, only
+/// from code compiled with the `avx2` feature, its bit-identical AVX2 version).
 #[inline(always)]
-fn lifted_step(a: &[f64], p: usize, pp: usize, z: &[f64], out: &mut [f64]) {
+fn lifted_step<const AVX: bool>(a: &[f64], p: usize, pp: usize, z: &[f64], out: &mut [f64]) -> [f64; ROWS] {
+    let z = &z[..p];
+    #[cfg(target_arch = "x86_64")]
+    if AVX {
+        use kernels::avx2::lifted;
+        // SAFETY: `AVX` is only set by `Engine::roll_avx2` (AVX2 checked at run time).
+        unsafe {
+            match pp {
+                8 => return lifted::<2>(a, z, out),
+                12 => return lifted::<3>(a, z, out),
+                16 => return lifted::<4>(a, z, out),
+                20 => return lifted::<5>(a, z, out),
+                24 => return lifted::<6>(a, z, out),
+                28 => return lifted::<7>(a, z, out),
+                32 => return lifted::<8>(a, z, out),
+                _ => {}
+            }
+        }
+    }
+    use kernels::lifted;
     match pp {
-        8 => lifted_step_n::<8>(a, p, z, out),
-        12 => lifted_step_n::<12>(a, p, z, out),
-        16 => lifted_step_n::<16>(a, p, z, out),
-        20 => lifted_step_n::<20>(a, p, z, out),
-        24 => lifted_step_n::<24>(a, p, z, out),
-        28 => lifted_step_n::<28>(a, p, z, out),
-        32 => lifted_step_n::<32>(a, p, z, out),
+        8 => lifted::<2>(a, z, out),
+        12 => lifted::<3>(a, z, out),
+        16 => lifted::<4>(a, z, out),
+        20 => lifted::<5>(a, z, out),
+        24 => lifted::<6>(a, z, out),
+        28 => lifted::<7>(a, z, out),
+        32 => lifted::<8>(a, z, out),
         _ => {
             let out = &mut out[..pp];
             out.iter_mut().for_each(|o| *o = 0.0);
-            for (col, &zj) in a[..p * pp].chunks_exact(pp).zip(&z[..p]) {
+            for (col, &zj) in a[..p * pp].chunks_exact(pp).zip(z) {
                 for (o, c) in out.iter_mut().zip(col) {
                     *o += c * zj;
                 }
             }
+            let mut head = [0.0; ROWS];
+            head.copy_from_slice(&out[..ROWS]);
+            head
         }
     }
-}
-
-#[inline(always)]
-fn lifted_step_n<const PP: usize>(a: &[f64], p: usize, z: &[f64], out: &mut [f64]) {
-    let mut acc = [0.0; PP];
-    for (col, &zj) in a[..p * PP].chunks_exact(PP).zip(&z[..p]) {
-        let col: &[f64; PP] = col.try_into().unwrap();
-        for i in 0..PP {
-            acc[i] += col[i] * zj;
-        }
-    }
-    out[..PP].copy_from_slice(&acc);
 }
 
 /// Allocation-free roll-out of a 13-state with one method (scratch preallocated).
@@ -669,8 +804,15 @@ fn lifted_step_n<const PP: usize>(a: &[f64], p: usize, z: &[f64], out: &mut [f64
 /// `x⁺ = (A φ(x))[..n]` (translation; attitude of the dictionary methods): the `n` state rows
 /// are copied once per call into padded columns (`8` entries), so a step is one lift plus `p`
 /// 8-wide multiply-adds. Linear mode (deep attitude model): `z⁺ = A z` from `z₀ = φ(x₀)`,
-/// decoded `x = z[..7]`. The decoded quaternion is renormalised every step (the lifted
-/// state `z` is left as is).
+/// decoded `x = z[..7]`, `A` copied once per call into columns padded to a multiple of 4.
+/// The decoded quaternion is renormalised every step (the lifted state `z` is left as is).
+///
+/// Speed: [`Engine::run_lanes`] rolls up to 4 tracks out in lockstep (their dependency
+/// chains overlap; [`crate::DebrisPredictor::forecast`] uses it), the dense kernels
+/// (`kernels.rs`) have AVX2 versions selected at run time, and the Gaussian RBF lift
+/// computes 4 centres per vector for all lanes at once. Every code path and lane count gives
+/// bit-identical results (no FMA; tests `code_paths_and_lanes_are_bit_identical` and the
+/// kernel unit tests).
 ///
 /// Trust region: a Koopman roll-out started outside the training distribution (e.g. a
 /// noisy rate estimate of a fresh track) can diverge polynomially. From the first step whose
@@ -679,13 +821,18 @@ fn lifted_step_n<const PP: usize>(a: &[f64], p: usize, z: &[f64], out: &mut [f64
 /// (counted in [`Engine::fallbacks`]).
 #[derive(Debug, Clone)]
 pub struct Engine {
-    ct: Vec<f64>,
-    ca: Vec<f64>,
-    zt: Vec<f64>,
-    za: Vec<f64>,
-    zn: Vec<f64>,
+    /// Per lane (track rolled out in lockstep, see [`Engine::run2`]): translation state rows.
+    ct: [Vec<f64>; LANES],
+    /// Attitude state rows (relift).
+    ca: [Vec<f64>; LANES],
+    /// Lifted translation state (dictionaries other than `[x, 1]`).
+    zt: [Vec<f64>; LANES],
+    /// Lifted attitude state.
+    za: [Vec<f64>; LANES],
+    /// Next lifted attitude state (linear roll-out).
+    zn: [Vec<f64>; LANES],
     /// Lifted matrix of a linear attitude roll-out, columns padded to `pp` rows.
-    ka: Vec<f64>,
+    ka: [Vec<f64>; LANES],
     pp: usize,
     /// Trust region: maximum speed [m/s].
     pub max_speed: f64,
@@ -693,92 +840,242 @@ pub struct Engine {
     pub max_spin: f64,
     /// Roll-outs that left the trust region and were continued by constant velocity.
     pub fallbacks: u64,
+    /// Always use the portable code path (no AVX2 even where the CPU has it; for tests and
+    /// comparisons: both paths give bit-identical results).
+    pub portable: bool,
+}
+
+/// Most tracks rolled out in lockstep ([`Engine::run_lanes`]).
+const LANES: usize = 4;
+
+/// One track of [`Engine::run2`]: its (possibly per-track refined) models, start state and
+/// output rows.
+#[derive(Debug)]
+pub struct Job<'a> {
+    /// Translational model.
+    pub trans: &'a KoopmanModel,
+    /// Attitude model.
+    pub att: &'a KoopmanModel,
+    /// Start 13-state.
+    pub x0: &'a [f64],
+    /// Output, at least `h · 13` entries.
+    pub out: &'a mut [f64],
 }
 
 impl Engine {
     /// Scratch for the models' sizes (trust region 5 m/s, 15 rad/s).
     pub fn new(models: &Models) -> Self {
         let (pt, pa) = (models.trans.p, models.att.p);
+        let pp = pa.next_multiple_of(4);
+        let lanes = |n: usize| std::array::from_fn(|_| vec![0.0; n]);
         Engine {
-            ct: vec![0.0; pt * ROWS],
-            ca: vec![0.0; pa * ROWS],
-            zt: vec![0.0; pt],
-            za: vec![0.0; pa.next_multiple_of(4)],
-            zn: vec![0.0; pa.next_multiple_of(4)],
-            ka: if models.att_rollout == Rollout::Linear {
-                vec![0.0; pa * pa.next_multiple_of(4)]
-            } else {
-                Vec::new()
-            },
-            pp: pa.next_multiple_of(4),
+            ct: lanes(pt * ROWS),
+            ca: lanes(pa * ROWS),
+            zt: lanes(pt),
+            za: lanes(pp),
+            zn: lanes(pp),
+            ka: lanes(if models.att_rollout == Rollout::Linear { pa * pp } else { 0 }),
+            pp,
             max_speed: 5.0,
             max_spin: 15.0,
             fallbacks: 0,
+            portable: false,
         }
     }
 
+    /// All entries finite, speed and spin within the trust region.
     fn trusted(&self, x: &[f64]) -> bool {
         let v2 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5];
         let w2 = x[10] * x[10] + x[11] * x[11] + x[12] * x[12];
         x.iter().all(|v| v.is_finite()) && v2 <= self.max_speed.powi(2) && w2 <= self.max_spin.powi(2)
     }
 
-    /// [`Engine::roll`] compiled for AVX2 (4-wide vectors, no FMA contraction: bit-identical).
+    /// [`Engine::roll`] compiled for AVX2 (4-wide vectors, no FMA contraction: bit-identical
+    /// to the portable path).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn roll_avx2(
+    unsafe fn roll_avx2<const T: usize>(
         &mut self,
         models: &Models,
-        att: &KoopmanModel,
-        x0: &[f64],
         pt: usize,
-        out: &mut [f64],
-    ) -> Option<usize> {
-        self.roll(models, att, x0, pt, out)
+        pa: usize,
+        x0: [&[f64]; T],
+        out: [&mut [f64]; T],
+    ) -> [Option<usize>; T] {
+        self.roll::<true, T>(models, pt, pa, x0, out)
     }
 
-    /// The fused roll-out loop over `out.len() / 13` steps; returns the first untrusted step.
-    /// Translation: relift with the state rows in `ct`. Attitude: relift with the state rows
-    /// in `ca`, or (deep model) linear in the lifted space with the full `att` matrix.
+    /// The lifted start state of a linear attitude roll-out (the deep lifting, compiled for
+    /// AVX2 when `AVX`; no FMA, so bit-identical).
     #[inline(always)]
-    fn roll(
+    fn lift_start<const AVX: bool>(lift: &AttitudeLifting, x: &[f64], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            if let AttitudeLifting::Deep(l) = lift {
+                // SAFETY: `AVX` is only set by `Engine::roll_avx2` (AVX2 checked at run time).
+                return unsafe { kernels::avx2::deep_lift(l, x, out) };
+            }
+        }
+        lift.lift(x, out)
+    }
+
+    /// The fused roll-out loop of `T ≤ 2` tracks in lockstep (independent dependency chains
+    /// that the CPU overlaps) over `out[t].len() / 13` steps; returns each track's first
+    /// untrusted step (its later rows are not written). Translation: relift with the state
+    /// rows in `ct`. Attitude: relift with the state rows in `ca`, or (deep model) linear in
+    /// the lifted space with the padded matrix in `ka`.
+    #[inline(always)]
+    fn roll<const AVX: bool, const T: usize>(
         &mut self,
         models: &Models,
-        att: &KoopmanModel,
-        x0: &[f64],
         pt: usize,
-        out: &mut [f64],
-    ) -> Option<usize> {
-        let pa = att.p;
+        pa: usize,
+        x0: [&[f64]; T],
+        out: [&mut [f64]; T],
+    ) -> [Option<usize>; T] {
         let linear = models.att_rollout == Rollout::Linear;
-        let mut xt = [0.0; 6];
-        xt.copy_from_slice(&x0[debris_state::TRANS]);
-        let mut xa = [0.0; 7];
-        xa.copy_from_slice(&x0[debris_state::ROT]);
-        if linear {
-            models.att_lift.lift(&xa, &mut self.za);
-        }
-        for (k, o) in out.chunks_exact_mut(N).enumerate() {
-            models.trans_lift.lift(&xt, &mut self.zt);
-            let a = state_rows_times(&self.ct, &self.zt[..pt]);
-            xt.copy_from_slice(&a[..6]);
+        // `[x, 1]` (the default translation dictionary) is lifted in place.
+        let plain_t = models.trans_lift.dim() == 7;
+        let h = out[0].len() / N;
+        let (max_v2, max_w2) = (self.max_speed.powi(2), self.max_spin.powi(2));
+        let Engine { ct, ca, zt, za, zn, ka, pp, .. } = self;
+        let pp = *pp;
+        // States as 8-entry values (`xt[6] = 1` is the constant of `[x, 1]`): whole-vector
+        // moves, no partial reloads of just written memory (failed store forwarding).
+        let mut xt = [[0.0; ROWS]; T];
+        let mut xa = [[0.0; ROWS]; T];
+        for t in 0..T {
+            xt[t][..6].copy_from_slice(&x0[t][debris_state::TRANS]);
+            xt[t][6] = 1.0;
+            xa[t][..7].copy_from_slice(&x0[t][debris_state::ROT]);
             if linear {
-                lifted_step(&self.ka, pa, self.pp, &self.za, &mut self.zn);
-                std::mem::swap(&mut self.za, &mut self.zn);
-                xa.copy_from_slice(&self.za[..7]);
-            } else {
-                models.att_lift.lift(&xa, &mut self.za);
-                let b = state_rows_times(&self.ca, &self.za[..pa]);
-                xa.copy_from_slice(&b[..7]);
-            }
-            StateConstraint::UnitQuaternion { at: 0 }.apply(&mut xa);
-            o[..6].copy_from_slice(&xt);
-            o[6..].copy_from_slice(&xa);
-            if !self.trusted(o) {
-                return Some(k);
+                Self::lift_start::<AVX>(&models.att_lift, &xa[t][..7], &mut za[t]);
             }
         }
-        None
+        let mut bad = [None; T];
+        let mut alive = T;
+        for k in 0..h {
+            for t in 0..T {
+                xt[t] = if plain_t {
+                    state_rows_times::<AVX>(&ct[t], &xt[t][..7])
+                } else {
+                    models.trans_lift.lift(&xt[t][..6], &mut zt[t]);
+                    state_rows_times::<AVX>(&ct[t], &zt[t][..pt])
+                };
+                xt[t][6] = 1.0;
+            }
+            if linear {
+                for t in 0..T {
+                    xa[t] = lifted_step::<AVX>(&ka[t], pa, pp, &za[t], &mut zn[t]);
+                    std::mem::swap(&mut za[t], &mut zn[t]);
+                }
+            } else {
+                match &models.att_lift {
+                    AttitudeLifting::Rbf(l) => l.lift_blocks::<AVX, T>(&xa, &mut za[..]),
+                    l => {
+                        for t in 0..T {
+                            l.lift(&xa[t][..7], &mut za[t]);
+                        }
+                    }
+                }
+                for t in 0..T {
+                    xa[t] = state_rows_times::<AVX>(&ca[t], &za[t][..pa]);
+                }
+            }
+            for t in 0..T {
+                // Unit quaternion (as `StateConstraint::UnitQuaternion`, same operations).
+                let q = &mut xa[t];
+                let nq = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+                if nq > 1e-12 {
+                    for v in &mut q[..4] {
+                        *v /= nq;
+                    }
+                }
+            }
+            for t in 0..T {
+                if bad[t].is_some() {
+                    continue;
+                }
+                let o = &mut out[t][k * N..(k + 1) * N];
+                o[..6].copy_from_slice(&xt[t][..6]);
+                o[6..].copy_from_slice(&xa[t][..7]);
+                let (a, b) = (&xt[t], &xa[t]);
+                let v2 = a[3] * a[3] + a[4] * a[4] + a[5] * a[5];
+                let w2 = b[4] * b[4] + b[5] * b[5] + b[6] * b[6];
+                let ok = a[..6].iter().chain(&b[..7]).fold(true, |ok, v| ok & v.is_finite())
+                    & (v2 <= max_v2)
+                    & (w2 <= max_w2);
+                if !ok {
+                    bad[t] = Some(k);
+                    alive -= 1;
+                }
+            }
+            if alive == 0 {
+                break;
+            }
+        }
+        bad
+    }
+
+    /// Check the model shapes and the scratch sizes; load lane `t`'s matrices.
+    fn load(&mut self, models: &Models, t: usize, trans: &KoopmanModel, att: &KoopmanModel) {
+        let (pt, pa) = (trans.p, att.p);
+        assert!(trans.n == 6 && att.n == 7 && trans.m == 0 && att.m == 0, "Engine: unexpected model shape");
+        assert!(
+            self.ct[t].len() >= pt * ROWS
+                && self.zt[t].len() >= pt
+                && self.zn[t].len() >= pa.next_multiple_of(4)
+                && if models.att_rollout == Rollout::Linear {
+                    self.ka[t].len() >= pa * pa.next_multiple_of(4)
+                } else {
+                    self.ca[t].len() >= pa * ROWS
+                },
+            "Engine: scratch too small"
+        );
+        load_state_rows(trans, &mut self.ct[t]);
+        if models.att_rollout == Rollout::Relift {
+            load_state_rows(att, &mut self.ca[t]);
+        } else {
+            self.pp = load_lifted(att, &mut self.ka[t]);
+        }
+    }
+
+    /// [`Engine::roll`] on the best code path for this CPU.
+    fn roll_dispatch<const T: usize>(
+        &mut self,
+        models: &Models,
+        pt: usize,
+        pa: usize,
+        x0: [&[f64]; T],
+        out: [&mut [f64]; T],
+    ) -> [Option<usize>; T] {
+        #[cfg(target_arch = "x86_64")]
+        if !self.portable && std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked at run time).
+            return unsafe { self.roll_avx2::<T>(models, pt, pa, x0, out) };
+        }
+        self.roll::<false, T>(models, pt, pa, x0, out)
+    }
+
+    /// Constant-velocity continuation from step `bad` on (trust region left).
+    fn fallback(&mut self, models: &Models, x0: &[f64], out: &mut [f64], bad: usize) {
+        self.fallbacks += 1;
+        let mut start = [0.0; N];
+        start.copy_from_slice(if bad == 0 { &x0[..N] } else { &out[(bad - 1) * N..bad * N] });
+        if !self.trusted(&start) {
+            // Even the start is implausible: clamp its rates to the trust region.
+            let clamp = |v: &mut [f64], lim: f64| {
+                let n = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+                if !n.is_finite() {
+                    v.iter_mut().for_each(|a| *a = 0.0);
+                } else if n > lim {
+                    v.iter_mut().for_each(|a| *a *= lim / n);
+                }
+            };
+            clamp(&mut start[3..6], self.max_speed);
+            clamp(&mut start[10..13], self.max_spin);
+        }
+        ConstantVelocity { frame_rate: models.frame_rate }.forecast(&start, models.dt, &mut out[bad * N..]);
     }
 
     /// Forecast `h ≤ models.horizon` steps of the 13-state from `x0` with the given (possibly
@@ -793,56 +1090,52 @@ impl Engine {
         out: &mut [f64],
     ) {
         let out = &mut out[..h * N];
-        let cv = ConstantVelocity { frame_rate: models.frame_rate };
         if models.method == Method::ConstantVelocity {
-            cv.forecast(x0, models.dt, out);
+            ConstantVelocity { frame_rate: models.frame_rate }.forecast(x0, models.dt, out);
             return;
         }
-        let (pt, pa) = (trans.p, att.p);
-        assert!(trans.n == 6 && att.n == 7 && trans.m == 0 && att.m == 0, "Engine: unexpected model shape");
-        assert!(
-            self.ct.len() >= pt * ROWS
-                && self.zn.len() >= pa.next_multiple_of(4)
-                && if models.att_rollout == Rollout::Linear {
-                    self.ka.len() >= pa * pa.next_multiple_of(4)
-                } else {
-                    self.ca.len() >= pa * ROWS
-                },
-            "Engine: scratch too small"
-        );
-        load_state_rows(trans, &mut self.ct);
-        if models.att_rollout == Rollout::Relift {
-            load_state_rows(att, &mut self.ca);
-        } else {
-            self.pp = load_lifted(att, &mut self.ka);
-        }
-        #[cfg(target_arch = "x86_64")]
-        let bad = if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked at run time).
-            unsafe { self.roll_avx2(models, att, x0, pt, out) }
-        } else {
-            self.roll(models, att, x0, pt, out)
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let bad = self.roll(models, att, x0, pt, out);
+        self.load(models, 0, trans, att);
+        let [bad] = self.roll_dispatch::<1>(models, trans.p, att.p, [x0], [&mut *out]);
         if let Some(bad) = bad {
-            self.fallbacks += 1;
-            let mut start = [0.0; N];
-            start.copy_from_slice(if bad == 0 { &x0[..N] } else { &out[(bad - 1) * N..bad * N] });
-            if !self.trusted(&start) {
-                // Even the start is implausible: clamp its rates to the trust region.
-                let clamp = |v: &mut [f64], lim: f64| {
-                    let n = v.iter().map(|a| a * a).sum::<f64>().sqrt();
-                    if !n.is_finite() {
-                        v.iter_mut().for_each(|a| *a = 0.0);
-                    } else if n > lim {
-                        v.iter_mut().for_each(|a| *a *= lim / n);
-                    }
-                };
-                clamp(&mut start[3..6], self.max_speed);
-                clamp(&mut start[10..13], self.max_spin);
+            self.fallback(models, x0, out, bad);
+        }
+    }
+
+    /// [`Engine::run`] for two tracks at once (same results as two calls: the tracks are
+    /// rolled out in lockstep so that their dependency chains overlap).
+    pub fn run2(&mut self, models: &Models, a: Job<'_>, b: Job<'_>, h: usize) {
+        self.run_lanes::<2>(models, [a, b], h)
+    }
+
+    /// [`Engine::run`] for `T ≤ 4` tracks at once (same results as `T` calls: the tracks are
+    /// rolled out in lockstep so that their dependency chains overlap).
+    pub fn run_lanes<const T: usize>(&mut self, models: &Models, jobs: [Job<'_>; T], h: usize) {
+        assert!(T >= 1 && T <= LANES, "Engine::run_lanes: 1 ≤ T ≤ {LANES}");
+        let mut x0 = [&[][..]; T];
+        let mut jobs = jobs.map(|j| (j.trans, j.att, j.x0, j.out));
+        if models.method == Method::ConstantVelocity {
+            let cv = ConstantVelocity { frame_rate: models.frame_rate };
+            for (_, _, x, o) in jobs.iter_mut() {
+                cv.forecast(x, models.dt, &mut o[..h * N]);
             }
-            cv.forecast(&start, models.dt, &mut out[bad * N..]);
+            return;
+        }
+        let (pt, pa) = (jobs[0].0.p, jobs[0].1.p);
+        for t in 0..T {
+            let (trans, att, x, _) = &jobs[t];
+            assert!(trans.p == pt && att.p == pa, "Engine::run_lanes: different model sizes");
+            self.load(models, t, trans, att);
+            x0[t] = x;
+        }
+        let bad = {
+            let rows: [&mut [f64]; T] = jobs.each_mut().map(|j| &mut j.3[..h * N]);
+            self.roll_dispatch::<T>(models, pt, pa, x0, rows)
+        };
+        let outs = jobs.map(|j| j.3);
+        for t in 0..T {
+            if let Some(k) = bad[t] {
+                self.fallback(models, x0[t], &mut outs[t][..h * N], k);
+            }
         }
     }
 }

@@ -3,7 +3,7 @@
 //! caller-provided buffer. Allocation-free after construction.
 
 use crate::filter::{quat_angle, FilterConfig, TrackFilter};
-use crate::models::{Engine, Method, Models};
+use crate::models::{Engine, Job, Method, Models};
 use dkrrt_debris::Observation;
 use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, ROT, TRANS};
 use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig, Rollout};
@@ -591,15 +591,38 @@ impl DebrisPredictor {
     pub fn forecast(&mut self, buf: &mut ForecastBuffer) -> usize {
         let h = buf.h.min(self.models.horizon);
         assert!((buf.dt - self.models.dt).abs() < 1e-12, "forecast buffer dt differs from the model dt");
+        let hb = buf.h;
+        // Tracks to forecast; rolled out four at a time (overlapping dependency chains).
+        let mut sel = [0u16; MAX_TRACKS];
         let mut n = 0;
-        for tr in self.tracks.iter().filter(|t| t.active && t.n_obs >= self.cfg.min_obs_for_forecast) {
-            let out = &mut buf.states[n * buf.h * N..(n * buf.h + h) * N];
-            self.engine.run(&self.models, &tr.trans, &tr.att, &tr.filter.x, h, out);
-            tr.pos_bound.radii(&mut buf.pos_radius[n * buf.h..n * buf.h + h]);
-            tr.att_bound.radii(&mut buf.att_radius[n * buf.h..n * buf.h + h]);
-            buf.ids[n] = tr.id;
-            buf.t0[n] = tr.filter.t;
-            n += 1;
+        for (i, tr) in self.tracks.iter().enumerate() {
+            if tr.active && tr.n_obs >= self.cfg.min_obs_for_forecast {
+                sel[n] = i as u16;
+                n += 1;
+            }
+        }
+        for (group, rows) in sel[..n].chunks(4).zip(buf.states.chunks_mut(4 * hb * N)) {
+            let tracks = &self.tracks;
+            let mut rows = rows.chunks_mut(hb * N);
+            let mut job = |i: u16| {
+                let tr = &tracks[i as usize];
+                Job { trans: &tr.trans, att: &tr.att, x0: &tr.filter.x, out: rows.next().unwrap() }
+            };
+            let m = &self.models;
+            match *group {
+                [a, b, c, d] => self.engine.run_lanes::<4>(m, [job(a), job(b), job(c), job(d)], h),
+                [a, b, c] => self.engine.run_lanes::<3>(m, [job(a), job(b), job(c)], h),
+                [a, b] => self.engine.run_lanes::<2>(m, [job(a), job(b)], h),
+                [a] => self.engine.run_lanes::<1>(m, [job(a)], h),
+                _ => unreachable!(),
+            }
+        }
+        for (k, &i) in sel[..n].iter().enumerate() {
+            let tr = &self.tracks[i as usize];
+            tr.pos_bound.radii(&mut buf.pos_radius[k * hb..k * hb + h]);
+            tr.att_bound.radii(&mut buf.att_radius[k * hb..k * hb + h]);
+            buf.ids[k] = tr.id;
+            buf.t0[k] = tr.filter.t;
         }
         buf.len = n;
         self.stats.forecast_fallbacks = self.engine.fallbacks;
