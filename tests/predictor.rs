@@ -65,7 +65,8 @@ fn the_predictor_process_forecasts_counts_bad_items_and_ends_with_the_run() {
             }
         }
         obs_pub.publish(&mut frame).unwrap();
-        std::thread::sleep(Duration::from_millis(3));
+        // The sensor's own pace (50 Hz): the predictor has 16 frames of slack on the bus.
+        std::thread::sleep(Duration::from_millis(20));
         fc_sub
             .for_each(&lim, |m| {
                 got += 1;
@@ -106,10 +107,22 @@ fn the_predictor_process_forecasts_counts_bad_items_and_ends_with_the_run() {
     };
     assert!(status.success());
     let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
-    assert_eq!(r["observations"]["items_invalid"], bad, "{r:#}");
-    assert_eq!(r["rejected_observations"], bad);
-    assert_eq!(r["observations"]["items"], 300);
-    assert_eq!(r["gate"]["accepted"], 300 - bad);
+    // Nothing is lost silently: frames the bus overwrote (a stall of the predictor longer
+    // than 16 frames) are counted; normally there are none.
+    let lost = r["observations"]["frames_lost"].as_u64().unwrap();
+    assert_eq!(r["observations"]["items"], 300 - 3 * lost, "{r:#}");
+    if lost == 0 {
+        assert_eq!(r["observations"]["items_invalid"], bad, "{r:#}");
+        assert_eq!(r["rejected_observations"], bad);
+        assert_eq!(r["gate"]["accepted"], 300 - bad);
+    } else {
+        eprintln!("{lost} frames lost on the bus (predictor stalled)");
+        let invalid = r["observations"]["items_invalid"].as_u64().unwrap();
+        assert!(
+            invalid <= bad && r["gate"]["accepted"].as_u64().unwrap() == 300 - 3 * lost - invalid,
+            "{r:#}"
+        );
+    }
     assert!(r["forecasts"].as_u64().unwrap() >= got);
     // Lockstep: one forecast per 1/50 s of observed plant time.
     let rate = r["forecast_rate_hz"].as_f64().unwrap();

@@ -48,6 +48,9 @@ pub struct ObsCounters {
     /// Frames received / rejected as a whole (bad `count`).
     pub frames: u64,
     pub frames_rejected: u64,
+    /// Frames lost on the bus before the predictor read them (gaps in the publisher's
+    /// sequence numbers; 0 in process).
+    pub frames_lost: u64,
     /// Items received.
     pub items: u64,
     /// Items rejected by the contract check (NaN/Inf, out-of-range position, non-unit quaternion...).

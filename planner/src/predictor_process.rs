@@ -87,6 +87,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         }
         // The core checks each frame and then each item (and counts what it drops).
         obs_sub.for_each_checked(|_| Ok(()), |f| core.observe_frame(f, &lim)).map_err(|e| e.to_string())?;
+        core.counters.frames_lost = obs_sub.lost;
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             end = state.header.flags & FLAG_END_OF_RUN != 0;
         }

@@ -38,14 +38,20 @@ fn err(what: impl Into<String>, detail: impl Debug) -> BusError {
 pub trait Topic: Debug + Copy + ZeroCopySend + Validate + Zeroed + 'static {
     /// iceoryx2 service name.
     const SERVICE: &'static str;
+    /// Samples a subscriber buffers before the oldest is overwritten.
+    const BUFFER: usize = SUBSCRIBER_BUFFER;
     fn header(&self) -> &Header;
     fn header_mut(&mut self) -> &mut Header;
 }
 
 macro_rules! topic {
     ($t:ty, $name:expr) => {
+        topic!($t, $name, SUBSCRIBER_BUFFER);
+    };
+    ($t:ty, $name:expr, $buffer:expr) => {
         impl Topic for $t {
             const SERVICE: &'static str = $name;
+            const BUFFER: usize = $buffer;
             fn header(&self) -> &Header {
                 &self.header
             }
@@ -60,7 +66,9 @@ topic!(TorqueCommand, "dkrrt/torque_command");
 topic!(Trajectory, "dkrrt/trajectory");
 topic!(Goal, "dkrrt/goal");
 topic!(Heartbeat, "dkrrt/health");
-topic!(DebrisObservation, "dkrrt/debris_observation");
+// Every observation frame matters (the predictor filters each one): 16 frames = 160–530 ms of
+// slack at 30–100 Hz before a late reader loses one (counted in `Sub::lost`).
+topic!(DebrisObservation, "dkrrt/debris_observation", OBSERVATION_BUFFER);
 topic!(DebrisForecast, "dkrrt/debris_forecast");
 
 /// QoS shared by all services (open_or_create needs the same values everywhere).
@@ -69,6 +77,8 @@ pub const MAX_SUBSCRIBERS: usize = 8;
 pub const MAX_NODES: usize = 16;
 /// Samples a subscriber buffers; on overflow the oldest is dropped (we poll the latest).
 pub const SUBSCRIBER_BUFFER: usize = 4;
+/// Subscriber buffer of the debris observation stream.
+pub const OBSERVATION_BUFFER: usize = 16;
 /// Late subscribers receive the last sample (the active trajectory or goal).
 pub const HISTORY: usize = 1;
 
@@ -117,7 +127,7 @@ impl Bus {
             .max_subscribers(MAX_SUBSCRIBERS)
             .max_nodes(MAX_NODES)
             .history_size(HISTORY)
-            .subscriber_max_buffer_size(SUBSCRIBER_BUFFER)
+            .subscriber_max_buffer_size(T::BUFFER)
             .enable_safe_overflow(true)
             .open_or_create()
             .map_err(|e| err(format!("open service {}", T::SERVICE), e))
@@ -136,10 +146,10 @@ impl Bus {
         let port = self
             .service::<T>()?
             .subscriber_builder()
-            .buffer_size(SUBSCRIBER_BUFFER)
+            .buffer_size(T::BUFFER)
             .create()
             .map_err(|e| err(format!("subscriber on {}", T::SERVICE), e))?;
-        Ok(Sub { port, received: 0, rejected: 0, last_error: None })
+        Ok(Sub { port, received: 0, rejected: 0, lost: 0, last: None, last_error: None })
     }
 
     pub fn config(&self) -> &Config {
@@ -242,6 +252,11 @@ pub struct Sub<T: Topic> {
     pub received: u64,
     /// Samples rejected by validation.
     pub rejected: u64,
+    /// Samples this subscriber never saw: gaps in a publisher's `header.seq` (its buffer
+    /// overflowed while the reader was late). Counted per run of one source; never over-counts.
+    pub lost: u64,
+    /// Source and `seq` of the last sample received.
+    last: Option<(u32, u64)>,
     /// The most recent validation failure.
     pub last_error: Option<ValidationError>,
 }
@@ -251,22 +266,13 @@ impl<T: Topic> Sub<T> {
     /// returns true if there was one. Invalid samples are counted and dropped.
     pub fn latest(&mut self, out: &mut T, lim: &ContractLimits) -> Result<bool, BusError> {
         let mut got = false;
-        loop {
-            let sample = self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?;
-            let Some(sample) = sample else { break };
-            self.received += 1;
-            let msg: &T = sample.payload();
-            match msg.validate(lim) {
-                Ok(()) => {
-                    *out = *msg;
-                    got = true;
-                }
-                Err(e) => {
-                    self.rejected += 1;
-                    self.last_error = Some(e);
-                }
-            }
-        }
+        self.for_each_checked(
+            |m| m.validate(lim),
+            |m| {
+                *out = *m;
+                got = true;
+            },
+        )?;
         Ok(got)
     }
 
@@ -290,6 +296,13 @@ impl<T: Topic> Sub<T> {
             self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?
         {
             self.received += 1;
+            let h = sample.payload().header();
+            if let Some((source, seq)) = self.last {
+                if source == h.source && h.seq > seq + 1 {
+                    self.lost += h.seq - seq - 1;
+                }
+            }
+            self.last = Some((h.source, h.seq));
             match check(sample.payload()) {
                 Ok(()) => {
                     f(sample.payload());

@@ -147,3 +147,38 @@ fn a_finished_run_leaves_no_files() {
     assert_eq!(removed, before);
     assert_eq!(shm_files(&run), 0);
 }
+
+#[test]
+fn a_late_reader_keeps_16_observation_frames_and_counts_the_lost_ones() {
+    let run = run_id("lost");
+    let _clean = Leftovers(run.clone());
+    let a = Bus::new(&run, "a").unwrap();
+    let mut p = a.publisher::<DebrisObservation>(Source::Sim).unwrap();
+    let mut s = a.subscriber::<DebrisObservation>().unwrap();
+    p.update_connections().unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let mut seqs = Vec::new();
+    p.publish(&mut frame).unwrap();
+    s.for_each_checked(|_| Ok(()), |f| seqs.push(f.header.seq)).unwrap();
+    assert_eq!((seqs.as_slice(), s.lost), (&[0u64][..], 0));
+    // The reader is late by 20 frames: the oldest 4 are overwritten, and counted.
+    for _ in 0..20 {
+        p.publish(&mut frame).unwrap();
+    }
+    seqs.clear();
+    s.for_each_checked(|_| Ok(()), |f| seqs.push(f.header.seq)).unwrap();
+    assert_eq!(seqs, (5..=20).collect::<Vec<u64>>());
+    assert_eq!((s.received, s.lost), (17, 4));
+    // State topics keep only 4 (the tracker polls the newest); gaps are counted the same way.
+    let mut ps = a.publisher::<RobotState>(Source::Sim).unwrap();
+    let mut ss = a.subscriber::<RobotState>().unwrap();
+    ps.update_connections().unwrap();
+    let mut got = <RobotState as Zeroed>::zeroed();
+    ps.publish(&mut state(0.0)).unwrap();
+    assert!(ss.latest(&mut got, &lim()).unwrap());
+    for i in 1..=10 {
+        ps.publish(&mut state(i as f64 * 0.1)).unwrap();
+    }
+    assert!(ss.latest(&mut got, &lim()).unwrap());
+    assert_eq!((got.header.seq, ss.received, ss.lost), (10, 5, 6));
+}
