@@ -156,8 +156,10 @@ impl DeepLifting {
     pub fn params(&self) -> &[f64] {
         &self.params[..param_count(self.n, self.hidden, self.layers, self.extra)]
     }
-    /// `NN(x)` only: writes `extra` values into `out`. Allocation-free.
-    #[inline]
+    /// `NN(x)` only: writes `extra` values into `out`. Allocation-free. Always inlined, so a
+    /// caller compiled with wider vector units (e.g. `#[target_feature(enable = "avx2")]`)
+    /// gets this code compiled for them (`dkrrt-predictor`'s roll-out engine does).
+    #[inline(always)]
     pub fn features(&self, x: &[f64], out: &mut [f64]) {
         let (n, h) = (self.n, self.hidden);
         let mut u = [0.0f64; MAX_IN];

@@ -30,7 +30,7 @@ pub mod rls;
 pub use baseline::ConstantVelocity;
 pub use bound::{validation_errors, ErrorBound, MAX_HORIZON};
 pub use dual::{fit_dual, fit_generator, DualFit, DualVariant, Generator};
-pub use lifting::{exp_fast, Fourier, Lifting, Polynomial, Rbf, RbfKind};
+pub use lifting::{exp_consts, exp_fast, Fourier, Lifting, Polynomial, Rbf, RbfKind};
 pub use linalg::{DMat, FitError, LstsqOptions};
 pub use model::{
     fit_dmdc, fit_edmd, lifted_data, Forecaster, KoopmanModel, Rollout, Snapshots, StateConstraint,

@@ -252,28 +252,15 @@ pub fn exp_fast(x: f64) -> f64 {
     exp_poly::<false>(x)
 }
 
-/// [`exp_fast`] with fused multiply-adds in the polynomial when `FMA` (only call with
-/// `FMA = true` from code compiled with the `fma` target feature; ≤ 1 ulp apart).
-#[inline(always)]
-fn exp_poly<const FMA: bool>(x: f64) -> f64 {
-    #[inline(always)]
-    fn ma<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
-        if FMA {
-            a.mul_add(b, c)
-        } else {
-            a * b + c
-        }
-    }
-    const MAGIC: f64 = 6755399441055744.0; // 1.5 · 2⁵², round-to-nearest via the FPU
-    const LN2_HI: f64 = 6.93147180369123816490e-01;
-    const LN2_LO: f64 = 1.90821492927058770002e-10;
-    let x = x.clamp(-708.0, 709.0);
-    let t = x * std::f64::consts::LOG2_E + MAGIC;
-    let k = t - MAGIC;
-    let ki = (t.to_bits() as i64).wrapping_sub(MAGIC.to_bits() as i64);
-    let r = (x - k * LN2_HI) - k * LN2_LO;
-    // eʳ = Σ rⁱ/i!, i ≤ 13, evaluated by Estrin's scheme (short dependency chains).
-    const C: [f64; 14] = [
+/// Constants of [`exp_fast`] (for vectorised versions that must stay bit-identical to it).
+pub mod exp_consts {
+    /// 1.5 · 2⁵²: adding and subtracting it rounds to the nearest integer.
+    pub const MAGIC: f64 = 6755399441055744.0;
+    /// ln 2 split into a high part (exact products with small integers) and the rest.
+    pub const LN2_HI: f64 = 6.93147180369123816490e-01;
+    pub const LN2_LO: f64 = 1.90821492927058770002e-10;
+    /// Taylor coefficients 1/i!, i = 0…13.
+    pub const C: [f64; 14] = [
         1.0,
         1.0,
         1.0 / 2.0,
@@ -289,6 +276,27 @@ fn exp_poly<const FMA: bool>(x: f64) -> f64 {
         1.0 / 479001600.0,
         1.0 / 6227020800.0,
     ];
+}
+
+/// [`exp_fast`] with fused multiply-adds in the polynomial when `FMA` (only call with
+/// `FMA = true` from code compiled with the `fma` target feature; ≤ 1 ulp apart).
+#[inline(always)]
+fn exp_poly<const FMA: bool>(x: f64) -> f64 {
+    #[inline(always)]
+    fn ma<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
+        if FMA {
+            a.mul_add(b, c)
+        } else {
+            a * b + c
+        }
+    }
+    use exp_consts::{C, LN2_HI, LN2_LO, MAGIC};
+    let x = x.clamp(-708.0, 709.0);
+    let t = x * std::f64::consts::LOG2_E + MAGIC;
+    let k = t - MAGIC;
+    let ki = (t.to_bits() as i64).wrapping_sub(MAGIC.to_bits() as i64);
+    let r = (x - k * LN2_HI) - k * LN2_LO;
+    // eʳ = Σ rⁱ/i!, i ≤ 13, evaluated by Estrin's scheme (short dependency chains).
     let r2 = r * r;
     let r4 = r2 * r2;
     let r8 = r4 * r4;

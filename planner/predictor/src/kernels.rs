@@ -4,7 +4,6 @@
 //! The AVX2 versions are only called from code compiled with the `avx2` target feature after
 //! a run-time check.
 
-use dkrrt_deep::lifting::{tanh_fast, MAX_HIDDEN, MAX_IN};
 use dkrrt_deep::DeepLifting;
 use dkrrt_koopman::{exp_fast, Lifting};
 
@@ -73,63 +72,14 @@ pub(crate) fn rbf_block(xs: &[f64; 7], blk: &[f64; 28], g: f64) -> [f64; 4] {
     e
 }
 
-/// [`DeepLifting::lift`] (`φ(x) = [x, NN(x)]`), the same operations in the same order as
-/// `dkrrt-deep` (inlined here so that it can be compiled for AVX2: bit-identical).
+/// [`DeepLifting::lift`] (`φ(x) = [x, NN(x)]`): `dkrrt-deep`'s own code, inlined
+/// (`DeepLifting::features` is `#[inline(always)]`) so that [`avx2::deep_lift`] compiles it for
+/// AVX2 — the same operations in the same order, bit-identical.
 #[inline(always)]
 pub(crate) fn deep_lift(l: &DeepLifting, x: &[f64], out: &mut [f64]) {
-    let (n, h, extra) = (l.state_dim(), l.hidden(), l.extra());
+    let (n, extra) = (l.state_dim(), l.extra());
     out[..n].copy_from_slice(&x[..n]);
-    let (offset, scale, params) = (l.offset(), l.scale(), l.params());
-    let mut u = [0.0f64; MAX_IN];
-    for i in 0..n {
-        u[i] = (x[i] - offset[i]) * (1.0 / scale[i]);
-    }
-    let mut a = [0.0f64; MAX_HIDDEN];
-    let mut b = [0.0f64; MAX_HIDDEN];
-    let mut off = dense(params, 0, &u[..n], &mut a[..h], true);
-    for _ in 1..l.layers() {
-        off = dense(params, off, &a[..h], &mut b[..h], true);
-        std::mem::swap(&mut a, &mut b);
-    }
-    dense(params, off, &a[..h], &mut out[n..n + extra], false);
-}
-
-/// `dkrrt-deep`'s dot product: four strided partial sums, `(s0 + s1) + (s2 + s3)`, then the
-/// remainder in order.
-#[inline(always)]
-fn dot(w: &[f64], x: &[f64]) -> f64 {
-    let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
-    let (cw, cx) = (w.chunks_exact(4), x.chunks_exact(4));
-    let (rw, rx) = (cw.remainder(), cx.remainder());
-    for (a, b) in cw.zip(cx) {
-        s0 += a[0] * b[0];
-        s1 += a[1] * b[1];
-        s2 += a[2] * b[2];
-        s3 += a[3] * b[3];
-    }
-    let mut s = (s0 + s1) + (s2 + s3);
-    for (a, b) in rw.iter().zip(rx) {
-        s += a * b;
-    }
-    s
-}
-
-/// `dkrrt-deep`'s dense layer: `out = act(W x + b)`, `W` row-major at `params[off..]`, `b`
-/// after it; returns the offset of the next layer.
-#[inline(always)]
-fn dense(params: &[f64], off: usize, x: &[f64], out: &mut [f64], act: bool) -> usize {
-    let (ni, no) = (x.len(), out.len());
-    let w = &params[off..off + no * ni];
-    let b = &params[off + no * ni..off + no * ni + no];
-    for ((o, row), bi) in out.iter_mut().zip(w.chunks_exact(ni)).zip(b) {
-        *o = dot(row, x) + bi;
-    }
-    if act {
-        for o in out.iter_mut() {
-            *o = tanh_fast(*o);
-        }
-    }
-    off + no * (ni + 1)
+    l.features(x, &mut out[n..n + extra]);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -234,25 +184,7 @@ pub(crate) mod avx2 {
     #[target_feature(enable = "avx2")]
     #[inline]
     pub(crate) unsafe fn exp4w<const W: usize>(x: [__m256d; W]) -> [__m256d; W] {
-        const MAGIC: f64 = 6755399441055744.0; // 1.5 · 2⁵²
-        const LN2_HI: f64 = 6.93147180369123816490e-01;
-        const LN2_LO: f64 = 1.90821492927058770002e-10;
-        const C: [f64; 14] = [
-            1.0,
-            1.0,
-            1.0 / 2.0,
-            1.0 / 6.0,
-            1.0 / 24.0,
-            1.0 / 120.0,
-            1.0 / 720.0,
-            1.0 / 5040.0,
-            1.0 / 40320.0,
-            1.0 / 362880.0,
-            1.0 / 3628800.0,
-            1.0 / 39916800.0,
-            1.0 / 479001600.0,
-            1.0 / 6227020800.0,
-        ];
+        use dkrrt_koopman::exp_consts::{C, LN2_HI, LN2_LO, MAGIC};
         let s = _mm256_set1_pd;
         let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
         let ma = |a, b, c| add(mul(a, b), c);
