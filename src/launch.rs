@@ -410,11 +410,11 @@ pub fn summary(r: &Value) -> String {
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
     for p in r["processes"].as_array().into_iter().flatten() {
         s += &format!(
-            "\n  {:<8} pid {:<7} exit {} {}",
+            "\n  {:<9} pid {:<7} exit {}{}",
             p["name"].as_str().unwrap_or("?"),
             p["pid"],
             p["exit_code"],
-            if p["signal"].is_null() { String::new() } else { format!("(signal {})", p["signal"]) }
+            if p["signal"].is_null() { String::new() } else { format!(" (signal {})", p["signal"]) }
         );
     }
     s

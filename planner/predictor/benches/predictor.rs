@@ -2,9 +2,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dkrrt_debris::{RandomSceneParams, Scene, SensorConfig};
-use dkrrt_deep::TrainConfig;
 use dkrrt_predictor::eval::{record, training_set, Recording};
-use dkrrt_predictor::training::{train_models, TrainOptions, TrainedModels};
+use dkrrt_predictor::training::TrainedModels;
 use dkrrt_predictor::{DebrisPredictor, FitConfig, ForecastBuffer, Method, Models, PredictorConfig};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -27,16 +26,10 @@ fn models(method: Method, train: &[Recording], deep: &TrainedModels) -> Models {
 fn bench(c: &mut Criterion) {
     let train = vec![run(1, 10.0)];
     let test = run(2, 60.0);
-    // Deep model: the default network size (p = 7 + 16), few epochs (cost depends on the
-    // sizes only); `DEEP_MODEL=FILE` benchmarks a trained model file instead.
-    let deep = match std::env::var("DEEP_MODEL") {
-        Ok(f) => TrainedModels::load(std::path::Path::new(&f)).unwrap(),
-        Err(_) => {
-            let d = TrainOptions::default().deep;
-            let o = TrainOptions { deep: TrainConfig { epochs: 2, ..d }, ..TrainOptions::tiny() };
-            train_models(&o, &mut |_| {}).unwrap()
-        }
-    };
+    // Deep model: the shipped one (`models/deep-attitude.dkm`), or `DEEP_MODEL=FILE`.
+    let path = dkrrt_predictor::training::bench_model_path();
+    let deep = TrainedModels::load(&path).unwrap_or_else(|e| panic!("deep model {}: {e}", path.display()));
+    eprintln!("deep model: {}", path.display());
     let mut g = c.benchmark_group("predictor");
     for method in Method::ALL {
         let m = models(method, &train, &deep);

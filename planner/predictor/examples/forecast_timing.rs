@@ -6,6 +6,7 @@
 
 use dkrrt_debris::{RandomSceneParams, Scene, SensorConfig};
 use dkrrt_predictor::eval::{record, training_set};
+use dkrrt_predictor::TrainedModels;
 use dkrrt_predictor::{DebrisPredictor, FitConfig, ForecastBuffer, Method, Models, PredictorConfig};
 use std::hint::black_box;
 use std::time::Instant;
@@ -26,10 +27,11 @@ fn main() {
     let fit = FitConfig { frame_rate: train[0].mean_motion, ..Default::default() };
     let ts = training_set(&train, fit.dt, fit.horizon, 1.0, &PredictorConfig::default());
     let only: Vec<String> = std::env::args().skip(1).collect();
-    // Deep methods: `DEEP_MODEL=FILE` (a trained model file); skipped without it.
-    let deep = std::env::var("DEEP_MODEL")
-        .ok()
-        .map(|f| dkrrt_predictor::TrainedModels::load(std::path::Path::new(&f)).unwrap());
+    // Deep methods: the shipped model (`models/deep-attitude.dkm`), or `DEEP_MODEL=FILE`.
+    let path = dkrrt_predictor::training::bench_model_path();
+    let deep = TrainedModels::load(&path).unwrap_or_else(|e| panic!("deep model {}: {e}", path.display()));
+    eprintln!("deep model: {}", path.display());
+    let deep = Some(deep);
     for method in Method::ALL {
         if (!only.is_empty() && !only.iter().any(|o| o == method.name())) || (method.deep() && deep.is_none())
         {

@@ -154,6 +154,26 @@ impl TrainedModels {
     }
 }
 
+/// The model file shipped with the repository (`models/deep-attitude.dkm`, the one the
+/// `dkrrt` binary embeds), for benchmarks and examples.
+pub const SHIPPED_MODEL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/deep-attitude.dkm");
+
+/// The model file a benchmark or example uses: the file named by `DEEP_MODEL` if set (a
+/// relative path is taken from the directory the command was started in, `PWD`, since
+/// `cargo bench` runs in the package directory), else [`SHIPPED_MODEL`].
+pub fn bench_model_path() -> std::path::PathBuf {
+    match std::env::var_os("DEEP_MODEL") {
+        Some(f) => {
+            let f = std::path::PathBuf::from(f);
+            match std::env::var_os("PWD") {
+                Some(cwd) if f.is_relative() => std::path::PathBuf::from(cwd).join(f),
+                _ => f,
+            }
+        }
+        None => std::path::PathBuf::from(SHIPPED_MODEL),
+    }
+}
+
 /// Simulate `scene` and return the true `(q, ω)` trajectory of every object on the `dt` grid.
 fn attitude_trajectories(scene: &Scene, opts: &TrainOptions) -> Result<Vec<Vec<f64>>, SceneError> {
     let mut world = DebrisWorld::new(scene)?;
