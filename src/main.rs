@@ -108,6 +108,10 @@ enum Cmd {
         /// Comma-separated methods (default: all).
         #[arg(long, value_delimiter = ',')]
         methods: Option<Vec<String>>,
+        /// Master seed of the study's runs (training `seed + i`, held-out `seed + 1000 + i`,
+        /// per scene offsets); another seed = another independent set of runs.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
     },
     /// Run the same cores in process, in lockstep (deterministic, no IPC); print the result as JSON.
     Eval {
@@ -163,8 +167,8 @@ fn main() -> ExitCode {
         Cmd::Train { out, quick, epochs, json } => {
             dkrrt::train::train(&out, quick, epochs, json.as_deref()).map(|_| true)
         }
-        Cmd::PredictEval { json, size, model, scenes, methods } => {
-            dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, json.as_deref())
+        Cmd::PredictEval { json, size, model, scenes, methods, seed } => {
+            dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
                 .map(|_| true)
         }
         Cmd::Eval { common } => {

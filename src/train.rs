@@ -97,6 +97,7 @@ pub fn predict_eval(
     model: Option<&str>,
     scenes: Option<Vec<String>>,
     methods: Option<Vec<String>>,
+    seed: u64,
     json: Option<&Path>,
 ) -> Result<(), String> {
     let mut cfg = match size {
@@ -104,6 +105,14 @@ pub fn predict_eval(
         "full" => StudyConfig::full(),
         _ => StudyConfig::medium(),
     };
+    // The study's runs use seeds `seed .. seed + 10 000 · scenes + 1 000 + runs`; the deep
+    // model's training data start at 1 000 000: keep them disjoint.
+    if seed > 900_000 {
+        return Err(format!(
+            "--seed {seed}: must be at most 900000 (the deep model's training runs use seeds from 1000000)"
+        ));
+    }
+    cfg.seed = seed;
     if let Some(s) = scenes {
         for name in &s {
             dkrrt_debris::Scene::named(name).map_err(|e| format!("--scenes: {e}"))?;
@@ -138,14 +147,19 @@ pub fn predict_eval(
     let rows = run_study_with(&cfg, deep.as_ref()).map_err(|e| e.to_string())?;
     println!("{}", markdown_table(&rows));
     println!(
-        "{} scenes x {} methods, {} training + {} held-out runs of {} s per scene, {:.1} s",
+        "{} scenes x {} methods, {} training + {} held-out runs of {} s per scene, seed {}, {:.1} s",
         cfg.scenes.len(),
         cfg.methods.len(),
         cfg.train_runs,
         cfg.test_runs,
         cfg.duration,
+        cfg.seed,
         t.elapsed().as_secs_f64()
     );
+    let cmp = dkrrt_predictor::eval::deep_vs_edmd(&rows, 2.0);
+    if !cmp.is_empty() {
+        println!("\n{}", dkrrt_predictor::eval::deep_vs_edmd_text(&cmp));
+    }
     if let Some(j) = json {
         std::fs::write(j, serde_json::to_string_pretty(&rows).unwrap())
             .map_err(|e| format!("write {}: {e}", j.display()))?;

@@ -40,7 +40,7 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
             "--scenes",
             "tumbling-rods",
             "--methods",
-            "constant-velocity,deep-koopman-online",
+            "constant-velocity,edmd-poly,deep-koopman-online",
             "--model",
         ])
         .arg(&model)
@@ -49,9 +49,23 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&rows_path).unwrap()).unwrap();
-    assert_eq!(rows.len(), 2 * 4);
+    assert_eq!(rows.len(), 3 * 4);
+    // The printed target check is the ratio of the JSON rows (EDMD / deep at 2 s).
+    let att = |m: &str| {
+        let r = rows.iter().find(|r| r["method"] == m && r["horizon_s"] == 2.0).unwrap();
+        r["att_err_rad"].as_f64().unwrap()
+    };
+    let ratio = att("edmd-poly") / att("deep-koopman-online");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("target (>= 2x at 2 s on tumbling-rods)"))
+        .unwrap_or_else(|| panic!("target line printed: {stdout}"));
+    let verdict = if ratio >= 2.0 { "met" } else { "NOT met" };
+    assert!(line.contains(&format!("attitude {ratio:.2}x {verdict}")), "{line} vs ratio {ratio}");
+    assert!(stdout.contains(", seed 7,"), "{stdout}");
     for r in &rows {
         assert_eq!(r["scene"], "tumbling-rods");
         assert!(
@@ -60,6 +74,41 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
         assert!(r["n"].as_u64().unwrap() > 20);
     }
     assert!(rows.iter().any(|r| r["method"] == "deep-koopman-online" && r["horizon_s"] == 2.0));
+
+    // Another seed: another set of runs (other errors); a seed that would reach the deep
+    // model's training seeds is refused naming the option.
+    let out = Command::new(exe())
+        .args([
+            "predict-eval",
+            "--size",
+            "small",
+            "--scenes",
+            "tumbling-rods",
+            "--methods",
+            "constant-velocity",
+        ])
+        .args(["--seed", "50007", "--json"])
+        .arg(dir.join("rows2.json"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows2: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("rows2.json")).unwrap()).unwrap();
+    let cv = |rows: &[serde_json::Value]| -> Vec<f64> {
+        rows.iter()
+            .filter(|r| r["method"] == "constant-velocity")
+            .map(|r| r["att_err_rad"].as_f64().unwrap())
+            .collect()
+    };
+    assert_eq!(cv(&rows2).len(), 4);
+    assert_ne!(cv(&rows2), cv(&rows), "another seed, other runs");
+    let out = Command::new(exe()).args(["predict-eval", "--seed", "950000"]).output().unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--seed 950000"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // A flipped byte: the checksum catches it, the error names the file.
     let mut bad = bytes.clone();

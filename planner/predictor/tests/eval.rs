@@ -37,6 +37,42 @@ fn small_study() {
     }
 }
 
+#[test]
+fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
+    use dkrrt_predictor::eval::{deep_vs_edmd, deep_vs_edmd_text};
+    let r = |scene: &str, method: &str, h: f64, pos: f64, att: f64| StudyRow {
+        scene: scene.into(),
+        method: method.into(),
+        horizon_s: h,
+        pos_err_m: pos,
+        att_err_rad: att,
+        n: 100,
+    };
+    let rows = vec![
+        r("tumbling-rods", "edmd-poly", 2.0, 0.04, 0.6),
+        r("tumbling-rods", "edmd-rbf", 2.0, 0.03, 1.2),
+        r("tumbling-rods", "deep-koopman-online", 2.0, 0.003, 0.4),
+        r("tumbling-rods", "deep-koopman-online", 1.0, 0.001, 0.1),
+        r("dense", "edmd-rbf", 2.0, 0.01, 0.2),
+        r("dense", "deep-koopman-online", 2.0, 0.01, 0.1),
+        r("sparse-slow", "constant-velocity", 2.0, 0.01, 0.1),
+    ];
+    let c = deep_vs_edmd(&rows, 2.0);
+    assert_eq!(c.len(), 2, "scenes without deep or EDMD rows are left out: {c:?}");
+    assert_eq!(c[0].scene, "tumbling-rods");
+    // Attitude: edmd-poly is the better EDMD (0.6 < 1.2); position: edmd-rbf (0.03 < 0.04).
+    assert_eq!(c[0].att_edmd, ("edmd-poly".to_string(), 0.6));
+    assert_eq!(c[0].pos_edmd, ("edmd-rbf".to_string(), 0.03));
+    assert!((c[0].att_ratio() - 1.5).abs() < 1e-12 && (c[0].pos_ratio() - 10.0).abs() < 1e-12);
+    assert!((c[1].att_ratio() - 2.0).abs() < 1e-12);
+    let text = deep_vs_edmd_text(&c);
+    assert!(
+        text.contains("target (>= 2x at 2 s on tumbling-rods): attitude 1.50x NOT met, position 10.00x met"),
+        "{text}"
+    );
+    assert!(deep_vs_edmd(&rows, 4.0).is_empty());
+}
+
 mod dual_ridge {
     use dkrrt_koopman::debris_state::N;
     use dkrrt_koopman::Lifting;
