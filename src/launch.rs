@@ -324,7 +324,8 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "observation_frames": sim.pointer("/debris/observation_frames"),
         }) } else { Value::Null },
         "predictor": if sc.has_debris() { json!({
-            "method": pred.get("method"),
+            // The scenario's method, also when the process left no statistics.
+            "method": pred.get("method").cloned().unwrap_or_else(|| json!(sc.predictor.method)),
             "forecasts": pred.get("forecasts"),
             "forecast_rate_hz": pred.get("forecast_rate_hz"),
             "forecast_compute_us": pick(pred.get("forecast_compute_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
@@ -397,15 +398,19 @@ pub fn summary(r: &Value) -> String {
                 .map_or("n/a".into(), |v| format!("{v:.3}")),
             r["debris"]["collision"]
         );
-        s += &format!(
-            "  predictor ({})  forecasts {} at {} Hz   compute us p50 {} p99 {}   rejected obs {}\n",
-            r["predictor"]["method"].as_str().unwrap_or("?"),
-            r["predictor"]["forecasts"],
-            f("/predictor/forecast_rate_hz"),
-            f("/predictor/forecast_compute_us/p50"),
-            f("/predictor/forecast_compute_us/p99"),
-            r["predictor"]["rejected_observations"]
-        );
+        let method = r["predictor"]["method"].as_str().unwrap_or("?");
+        if r["predictor"]["forecasts"].is_null() {
+            s += &format!("  predictor ({method})  no statistics (the process did not finish)\n");
+        } else {
+            s += &format!(
+                "  predictor ({method})  forecasts {} at {} Hz   compute us p50 {} p99 {}   rejected obs {}\n",
+                r["predictor"]["forecasts"],
+                f("/predictor/forecast_rate_hz"),
+                f("/predictor/forecast_compute_us/p50"),
+                f("/predictor/forecast_compute_us/p99"),
+                r["predictor"]["rejected_observations"]
+            );
+        }
     }
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
     for p in r["processes"].as_array().into_iter().flatten() {

@@ -194,7 +194,8 @@ fn lockstep_run_reaches_the_goal_exactly() {
 fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("kill");
-    let (mut child, rest, sim_pid) = start_launch(&["--duration", "10"], &rp);
+    let (mut child, rest, pids) = start_launch(&["--duration", "10"], &rp);
+    let sim_pid = pids["sim"];
     // Mid-motion (the default trajectory takes ~4 s).
     std::thread::sleep(Duration::from_millis(1500));
     // SAFETY: kill(2) on the pid the launcher just reported.
@@ -227,11 +228,11 @@ fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
 }
 
 /// Starts a launch and waits until all its processes are alive. Returns the
-/// child, a thread collecting the rest of its stdout, and the sim's pid.
+/// child, a thread collecting the rest of its stdout, and the processes' pids.
 fn start_launch(
     args: &[&str],
     report: &std::path::Path,
-) -> (std::process::Child, std::thread::JoinHandle<Vec<String>>, i32) {
+) -> (std::process::Child, std::thread::JoinHandle<Vec<String>>, std::collections::HashMap<String, i32>) {
     let mut child = Command::new(exe())
         .arg("launch")
         .args(args)
@@ -242,18 +243,56 @@ fn start_launch(
         .spawn()
         .unwrap();
     let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
-    let mut sim_pid = None;
+    let mut pids = std::collections::HashMap::new();
     for line in lines.by_ref() {
         let line = line.unwrap();
-        if let Some(rest) = line.strip_prefix("dkrrt: started sim pid ") {
-            sim_pid = rest.trim().parse::<i32>().ok();
+        if let Some((name, pid)) = line.strip_prefix("dkrrt: started ").and_then(|r| r.split_once(" pid ")) {
+            pids.insert(name.to_string(), pid.trim().parse::<i32>().unwrap());
         }
         if line.starts_with("dkrrt: all processes alive") {
             break;
         }
     }
     let rest = std::thread::spawn(move || lines.map_while(Result::ok).collect::<Vec<_>>());
-    (child, rest, sim_pid.expect("launcher announced the sim's pid"))
+    assert!(pids.contains_key("sim"), "launcher announced the sim's pid");
+    (child, rest, pids)
+}
+
+#[test]
+fn killing_the_predictor_fails_the_run_and_leaves_the_arm_safe() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("kill-pred");
+    let (mut child, rest, pids) = start_launch(&["--duration", "10"], &rp);
+    std::thread::sleep(Duration::from_millis(1500));
+    // SAFETY: kill(2) on the pid the launcher just reported.
+    assert_eq!(unsafe { libc::kill(pids["predictor"], libc::SIGKILL) }, 0);
+    let status = child.wait().unwrap();
+    let rest = rest.join().unwrap().join("\n");
+    assert!(!status.success(), "a crashed predictor makes the run fail");
+    let r = read_report(&rp);
+    assert_eq!(r["ok"], false);
+    let reason = r["stop_reason"].as_str().unwrap();
+    assert!(reason.contains("predictor") && reason.contains("signal 9"), "{reason}");
+    let procs = r["processes"].as_array().unwrap();
+    assert_eq!(procs[1]["name"], "predictor");
+    assert_eq!(procs[1]["signal"], 9);
+    // The others were stopped by the launcher (SIGTERM, well before the run's 10 s) and
+    // exited cleanly. The arm side (sim or driver) was stopped by the signal, which by the
+    // driver contract publishes a last state with END_OF_RUN and engages the brakes.
+    for i in [0, 2, 3] {
+        assert_eq!(procs[i]["exit_code"], 0, "{}", procs[i]);
+    }
+    assert_eq!(r["sim"]["stopped_by_signal"], true, "{:#}", r["sim"]);
+    assert!(num(&r, "/duration_s") < 9.0);
+    // The report keeps the scenario's method; the summary says there are no statistics.
+    assert_eq!(r["predictor"]["method"], "deep-koopman-online");
+    assert!(r["predictor"]["forecasts"].is_null());
+    assert!(rest.contains("predictor died"), "{rest}");
+    assert!(rest.contains("predictor (deep-koopman-online)  no statistics"), "{rest}");
+    let run = r["run_id"].as_str().unwrap();
+    let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
+    assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
+    let _ = std::fs::remove_file(rp);
 }
 
 #[test]
