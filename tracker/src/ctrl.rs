@@ -131,6 +131,8 @@ pub struct Tracker {
     brake_start_ns: u64,
     hold_q: [f64; NJ],
     last_state: Option<(u64, u64, JVec, JVec)>, // (seq, stamp_ns, q, qd)
+    /// `traj` arrived before the first state: its start is checked on the tick after it.
+    traj_pending: bool,
     ticks_since_state: u32,
     prev_tau: JVec,
     tick: u64,
@@ -148,6 +150,7 @@ impl Tracker {
             brake_start_ns: 0,
             hold_q: [0.0; NJ],
             last_state: None,
+            traj_pending: false,
             ticks_since_state: 0,
             prev_tau: JVec::zeros(),
             tick: 0,
@@ -169,7 +172,7 @@ impl Tracker {
 
     /// End position of the last accepted trajectory (the goal), if any.
     pub fn goal(&self) -> Option<[f64; NJ]> {
-        (self.traj.traj_id != 0).then(|| self.traj.sample(self.traj.duration_s).p)
+        (self.traj.traj_id != 0 && !self.traj_pending).then(|| self.traj.sample(self.traj.duration_s).p)
     }
 
     /// Plant time of the current tick (extrapolated while the state is stale).
@@ -243,25 +246,37 @@ impl Tracker {
     /// Offers a new (already validated) trajectory. Accepted if it is new and
     /// starts at the current reference; otherwise rejected and, while
     /// tracking, the controller brakes (an invalid trajectory is not followed).
+    /// Before the first state, where the arm is is not known: the trajectory is
+    /// kept and its start checked against the first state (on the tick after it).
     pub fn set_trajectory(&mut self, t: &Trajectory) -> Option<ModeEvent> {
         if t.traj_id == self.traj.traj_id && self.traj.traj_id != 0 {
             return None;
         }
+        if t.traj_id != 0 && self.last_state.is_none() {
+            *self.traj = *t;
+            self.traj_pending = true;
+            return None;
+        }
         let ns = self.plant_ns();
         let start = t.sample(t.time_of(ns)).p;
-        let (cur, _, _) = match (self.mode, self.last_state) {
-            (ControllerMode::Idle, Some((_, _, q, _))) => (q.into(), [0.0; NJ], [0.0; NJ]),
-            (ControllerMode::Idle, None) => (start, [0.0; NJ], [0.0; NJ]),
-            _ => self.reference(ns),
-        };
-        let jump = (0..NJ).map(|i| (start[i] - cur[i]).abs()).fold(0.0, f64::max);
-        if t.traj_id == 0 || jump > self.cfg.max_start_jump {
+        if t.traj_id == 0 || !self.starts_at_reference(&start, ns) {
             self.stats.trajectories_rejected += 1;
             return self.reject_trajectory(ns);
         }
         *self.traj = *t;
         self.stats.trajectories_accepted += 1;
         Some(self.switch(ControllerMode::Track, Reason::NewTrajectory, ns))
+    }
+
+    /// Whether `start` lies within `max_start_jump` of the current reference (the measured
+    /// position when idle).
+    fn starts_at_reference(&self, start: &[f64; NJ], ns: u64) -> bool {
+        let cur: [f64; NJ] = match (self.mode, &self.last_state) {
+            (ControllerMode::Idle, Some((_, _, q, _))) => (*q).into(),
+            _ => self.reference(ns).0,
+        };
+        let jump = (0..NJ).map(|i| (start[i] - cur[i]).abs()).fold(0.0, f64::max);
+        jump <= self.cfg.max_start_jump
     }
 
     /// Records that a trajectory message failed validation.
@@ -289,8 +304,8 @@ impl Tracker {
                     event = Some(ModeEvent {
                         tick: self.tick,
                         plant_ns: stamp,
-                        from: ControllerMode::Idle,
-                        to: ControllerMode::Idle,
+                        from: self.mode,
+                        to: self.mode,
                         reason: Reason::FirstState,
                     });
                 }
@@ -304,6 +319,20 @@ impl Tracker {
         let stale = self.ticks_since_state >= self.cfg.stale_ticks;
         if stale {
             self.stats.stale_ticks += 1;
+        }
+        // A trajectory that arrived before the first state: check its start now (the tick
+        // after the first state, whose event this tick may already carry).
+        if self.traj_pending && event.is_none() && !stale {
+            self.traj_pending = false;
+            let start = self.traj.sample(self.traj.time_of(ns)).p;
+            if self.starts_at_reference(&start, ns) {
+                self.stats.trajectories_accepted += 1;
+                event = Some(self.switch(ControllerMode::Track, Reason::NewTrajectory, ns));
+            } else {
+                // Nothing was accepted before it: forget it (as a rejected offer is).
+                self.stats.trajectories_rejected += 1;
+                self.traj.traj_id = 0;
+            }
         }
 
         // Mode transitions.

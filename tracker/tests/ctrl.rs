@@ -163,6 +163,44 @@ fn a_trajectory_that_does_not_start_at_the_reference_is_rejected() {
 }
 
 #[test]
+fn a_trajectory_before_the_first_state_is_checked_against_it() {
+    // Offered before any state: kept, not followed; accepted the tick after the first state
+    // because it starts where the arm is.
+    let mut l = setup(true);
+    assert!(l.ctrl.set_trajectory(&l.traj).is_none());
+    assert_eq!(l.ctrl.mode(), ControllerMode::Idle);
+    assert_eq!(l.ctrl.goal(), None, "not accepted yet");
+    let first = l.tick(true).event.expect("first state");
+    assert_eq!(
+        (first.reason, first.from, first.to),
+        (Reason::FirstState, ControllerMode::Idle, ControllerMode::Idle)
+    );
+    let e = l.tick(true).event.expect("accepted on the next tick");
+    assert_eq!((e.reason, e.to), (Reason::NewTrajectory, ControllerMode::Track));
+    assert_eq!(l.ctrl.stats.trajectories_accepted, 1);
+    assert!(l.ctrl.goal().is_some());
+    // One that starts away from the arm: rejected at the first state, the arm stays idle
+    // (no torque towards the far start), and the same id offered later is judged again.
+    let mut l = setup(true);
+    let mut far = Trajectory::hold(&[0.5; NJ]);
+    far.traj_id = 9;
+    far.duration_s = 1.0;
+    assert!(l.ctrl.set_trajectory(&far).is_none());
+    l.tick(true);
+    let out = l.tick(true);
+    assert!(out.event.is_none(), "{:?}", out.event);
+    assert_eq!(l.ctrl.mode(), ControllerMode::Idle);
+    assert_eq!(l.ctrl.stats.trajectories_rejected, 1);
+    assert_eq!(l.ctrl.stats.trajectories_accepted, 0);
+    assert_eq!(l.ctrl.goal(), None);
+    assert!(l.ctrl.set_trajectory(&far).is_none());
+    assert_eq!(l.ctrl.stats.trajectories_rejected, 2);
+    for _ in 0..200 {
+        assert_eq!(l.tick(true).mode, ControllerMode::Idle);
+    }
+}
+
+#[test]
 fn tick_and_set_trajectory_allocate_nothing() {
     let mut l = setup(true);
     l.tick(true);
