@@ -141,7 +141,7 @@ pub fn run(
                         ));
                     }
                     spins += 1;
-                    if spins % 64 == 0 {
+                    if spins.is_multiple_of(64) {
                         // Late subscribers get the current state from history.
                         state_pub.update_connections().map_err(|e| e.to_string())?;
                         std::thread::yield_now();

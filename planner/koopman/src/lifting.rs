@@ -257,8 +257,8 @@ pub mod exp_consts {
     /// 1.5 · 2⁵²: adding and subtracting it rounds to the nearest integer.
     pub const MAGIC: f64 = 6755399441055744.0;
     /// ln 2 split into a high part (exact products with small integers) and the rest.
-    pub const LN2_HI: f64 = 6.93147180369123816490e-01;
-    pub const LN2_LO: f64 = 1.90821492927058770002e-10;
+    pub const LN2_HI: f64 = 6.931_471_803_691_238e-1;
+    pub const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     /// Taylor coefficients 1/i!, i = 0…13.
     pub const C: [f64; 14] = [
         1.0,

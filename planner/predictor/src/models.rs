@@ -157,7 +157,7 @@ pub struct GaussianRbf {
 impl GaussianRbf {
     /// `centres` is `k × 7` row-major (k ≥ 1), `scale` the per-coordinate distance scale.
     pub fn new(centres: Vec<f64>, scale: &[f64], sigma: f64) -> Self {
-        assert!(!centres.is_empty() && centres.len() % 7 == 0, "GaussianRbf: centres must be k × 7");
+        assert!(!centres.is_empty() && centres.len().is_multiple_of(7), "GaussianRbf: centres must be k × 7");
         assert_eq!(scale.len(), 7, "GaussianRbf: scale must have 7 entries");
         let k = centres.len() / 7;
         let mut inv_scale = [0.0; 7];

@@ -122,7 +122,7 @@ fn code_paths_and_lanes_are_bit_identical() {
     let mut s = starts[2];
     s[12] = f64::NAN;
     starts.push(s);
-    while starts.len() % 4 != 0 {
+    while !starts.len().is_multiple_of(4) {
         starts.push(starts[3]);
     }
     let deep = deep_models();
