@@ -8,6 +8,13 @@ fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_dkrrt")
 }
 
+/// `dkrrt predict-eval` of the small study on tumbling-rods with `methods`.
+fn small_study(methods: &str) -> Command {
+    let mut c = Command::new(exe());
+    c.args(["predict-eval", "--size", "small", "--scenes", "tumbling-rods", "--methods", methods]);
+    c
+}
+
 #[test]
 fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
     let dir = std::env::temp_dir().join(format!("dkrrt-train-cli-{}", std::process::id()));
@@ -32,17 +39,8 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
 
     // The study with that model: rows for every requested method and horizon.
     let rows_path = dir.join("rows.json");
-    let out = Command::new(exe())
-        .args([
-            "predict-eval",
-            "--size",
-            "small",
-            "--scenes",
-            "tumbling-rods",
-            "--methods",
-            "constant-velocity,edmd-poly,deep-koopman-online",
-            "--model",
-        ])
+    let out = small_study("constant-velocity,edmd-poly,deep-koopman-online")
+        .arg("--model")
         .arg(&model)
         .arg("--json")
         .arg(&rows_path)
@@ -77,16 +75,7 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
 
     // Another seed: another set of runs (other errors); a seed that would reach the deep
     // model's training seeds is refused naming the option.
-    let out = Command::new(exe())
-        .args([
-            "predict-eval",
-            "--size",
-            "small",
-            "--scenes",
-            "tumbling-rods",
-            "--methods",
-            "constant-velocity",
-        ])
+    let out = small_study("constant-velocity")
         .args(["--seed", "50007", "--json"])
         .arg(dir.join("rows2.json"))
         .output()
