@@ -47,7 +47,9 @@ struct Proc {
 fn spawn(exe: &Path, name: &'static str, run: &str, scenario: &Path, stats: &Path) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
     if name == "sim" {
-        cmd.arg(name).arg("--gate-trajectory");
+        // Lockstep: plant time starts once the trajectory is out and (with debris, where
+        // the launcher starts a predictor) the observations have their reader.
+        cmd.arg(name).arg("--gate-trajectory").arg("--gate-predictor");
     } else {
         cmd.arg(name);
     }

@@ -134,18 +134,16 @@ impl Lockstep {
             // the true arm state, observations go to the predictor, forecasts on the plant clock.
             d.side.step(self.dt_s);
             d.side.check(self.plant.model(), &self.plant.true_state().0);
-            let (core, lim) = (&mut d.core, &d.lim);
+            let (core, lim, rate_hz, fc) = (&mut d.core, &d.lim, d.rate_hz, &mut d.forecast);
+            let (forecasts, tracks) = (&mut d.forecasts, &mut d.tracks);
             let _ = d.side.drain_observations::<()>(&mut d.frame, |f| {
-                core.observe_frame(f, lim);
+                let n = core.observe_then_forecast(f, lim, rate_hz, fc);
+                if n > 0 {
+                    *forecasts += 1;
+                    *tracks = n as u32;
+                }
                 Ok(())
             });
-            if d.core.due_on_plant_clock(d.rate_hz) {
-                let n = d.core.forecast_into(&mut d.forecast);
-                if n > 0 {
-                    d.forecasts += 1;
-                    d.tracks = n as u32;
-                }
-            }
         }
     }
 }

@@ -63,6 +63,9 @@ enum Cmd {
         /// Lockstep only: hold at tick 0 until a trajectory has been published.
         #[arg(long)]
         gate_trajectory: bool,
+        /// Lockstep with debris only: hold at tick 0 until the debris observations have a reader.
+        #[arg(long)]
+        gate_predictor: bool,
     },
     /// The 1 kHz computed-torque tracker process.
     Tracker(ProcArgs),
@@ -143,9 +146,15 @@ fn main() -> ExitCode {
             println!("report: {}", report.display());
             Ok(ok)
         }
-        Cmd::Sim { p, gate_trajectory } => {
+        Cmd::Sim { p, gate_trajectory, gate_predictor } => {
             let sc = scenario(&p.common)?;
-            dkrrt_sim::process::run(&p.run, &sc, gate_trajectory, p.stats.as_deref()).map(|_| true)
+            dkrrt_sim::process::run(
+                &p.run,
+                &sc,
+                dkrrt_sim::process::Gate { trajectory: gate_trajectory, predictor: gate_predictor },
+                p.stats.as_deref(),
+            )
+            .map(|_| true)
         }
         Cmd::Tracker(p) => {
             let sc = scenario(&p.common)?;

@@ -183,10 +183,22 @@ fn lockstep_run_reaches_the_goal_exactly() {
     assert_eq!(num(&r, "/ticks"), 6001.0);
     assert_eq!(num(&r, "/deadline_misses"), 0.0);
     // Lockstep has no clock: the same cores as the in-process evaluation.
-    let eval = dkrrt::lockstep::run(&dkrrt_config::Scenario::default_scenario()).unwrap();
+    let mut sc = dkrrt_config::Scenario::default_scenario();
+    sc.run.duration_s = 6.0;
+    let eval = dkrrt::lockstep::run(&sc).unwrap();
     assert!(num(&r, "/final_error_rad") < 1e-6);
     assert!(num(&r, "/tracking_error_rad/rms") < 10.0 * eval.tracking_error_rad_rms + 1e-7);
     assert_eq!(num(&r, "/safe_hold/entries"), 0.0);
+    // The predictor process read every observation frame the sim published (the sim
+    // waited for it at tick 0) and made the in-process core's forecasts (the process
+    // set's sim stops before the last tick's sensor output: one frame less at most).
+    let (pe, de) = (eval.predictor.unwrap(), eval.debris.unwrap());
+    let frames = num(&r, "/debris/observation_frames");
+    assert_eq!(num(&r, "/predictor_stats/observations/frames"), frames, "{:#}", r["predictor_stats"]);
+    assert_eq!(num(&r, "/predictor_stats/observations/frames_lost"), 0.0);
+    assert!((de.observation_frames as f64 - frames).abs() <= 1.0, "{frames} vs {}", de.observation_frames);
+    let fc = num(&r, "/predictor/forecasts");
+    assert!((pe.forecasts as f64 - fc).abs() <= 1.0, "{fc} vs in process {}", pe.forecasts);
     let _ = std::fs::remove_file(rp);
 }
 

@@ -208,6 +208,26 @@ impl PredictorCore {
         true
     }
 
+    /// The lockstep cadence, frame by frame: observes `frame`, then forecasts into `msg` if
+    /// that frame took the plant clock past the next `1/rate_hz` boundary. Returns the number
+    /// of tracks forecast (0: not due, or no mature track). Called for every frame in order,
+    /// the forecasts are the same however the frames are batched (the in-process lockstep
+    /// and the lockstep process share it).
+    pub fn observe_then_forecast(
+        &mut self,
+        frame: &DebrisObservation,
+        lim: &ContractLimits,
+        rate_hz: f64,
+        msg: &mut DebrisForecast,
+    ) -> usize {
+        self.observe_frame(frame, lim);
+        if self.due_on_plant_clock(rate_hz) {
+            self.forecast_into(msg)
+        } else {
+            0
+        }
+    }
+
     fn set_radius(&mut self, id: u32, r: f64) {
         if let Some(e) = self.radii.iter_mut().find(|e| e.0 == id) {
             e.1 = r;

@@ -32,7 +32,8 @@ pub struct PredictorReport {
     /// Forecasts per second (wall clock in realtime, plant clock in lockstep) between the
     /// first and the last forecast.
     pub forecast_rate_hz: f64,
-    /// Time of one forecast (all tracks, roll-out + message), µs.
+    /// Time of one forecast (all tracks, roll-out + message), µs; in lockstep it includes the
+    /// observation of the frame that made the forecast due.
     pub forecast_compute_us: Percentiles,
     /// Tracks in the last forecast.
     pub tracks: u32,
@@ -85,26 +86,55 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             stopped_by_signal = true;
             break;
         }
-        // The core checks each frame and then each item (and counts what it drops).
-        obs_sub.for_each_checked(|_| Ok(()), |f| core.observe_frame(f, &lim)).map_err(|e| e.to_string())?;
-        core.counters.frames_lost = obs_sub.lost;
+        // The end of the run first: the sim publishes its last frames before the state with
+        // END_OF_RUN, so the drain below still gets them (and counts a gap before them).
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             end = state.header.flags & FLAG_END_OF_RUN != 0;
         }
-        let due = realtime || core.due_on_plant_clock(sc.predictor.rate_hz);
-        if due {
+        // The core checks each frame and then each item (and counts what it drops).
+        // Realtime: all new frames, then one forecast per wake. Lockstep: frame by frame,
+        // a forecast at every plant-clock boundary a frame passes (however the frames were
+        // batched on the bus).
+        let mut publish_err = None;
+        let mut publish = |msg: &mut DebrisForecast, n: usize, t0: u64, t: f64| {
+            if let Err(e) = fc_pub.publish(msg) {
+                publish_err.get_or_insert(e.to_string());
+            }
+            compute.record_ns(mono_ns() - t0);
+            forecasts += 1;
+            tracks = n as u32;
+            first_fc.get_or_insert(t);
+            last_fc = t;
+        };
+        if realtime {
+            obs_sub
+                .for_each_checked(|_| Ok(()), |f| core.observe_frame(f, &lim))
+                .map_err(|e| e.to_string())?;
             let t0 = mono_ns();
             let n = core.forecast_into(&mut msg);
             if n > 0 {
-                fc_pub.publish(&mut msg).map_err(|e| e.to_string())?;
-                compute.record_ns(mono_ns() - t0);
-                forecasts += 1;
-                tracks = n as u32;
-                let t = if realtime { mono_ns() as f64 * 1e-9 } else { core.newest_t };
-                first_fc.get_or_insert(t);
-                last_fc = t;
+                publish(&mut msg, n, t0, mono_ns() as f64 * 1e-9);
             }
+        } else {
+            let rate_hz = sc.predictor.rate_hz;
+            obs_sub
+                .for_each_checked(
+                    |_| Ok(()),
+                    |f| {
+                        let t0 = mono_ns();
+                        let n = core.observe_then_forecast(f, &lim, rate_hz, &mut msg);
+                        if n > 0 {
+                            let t = core.newest_t;
+                            publish(&mut msg, n, t0, t);
+                        }
+                    },
+                )
+                .map_err(|e| e.to_string())?;
         }
+        if let Some(e) = publish_err {
+            return Err(e);
+        }
+        core.counters.frames_lost = obs_sub.lost;
         hb.maybe_send(
             mono_ns(),
             false,

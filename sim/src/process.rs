@@ -40,15 +40,19 @@ pub struct SimReport {
 /// Runs the simulator until the scenario's duration has elapsed in plant
 /// time, or SIGINT/SIGTERM. The last published state carries `FLAG_END_OF_RUN`.
 ///
-/// `gate_on_trajectory` (lockstep only): hold at tick 0 until a trajectory has
+/// `gate.trajectory` (lockstep only): hold at tick 0 until a trajectory has
 /// been published, so plant time does not run ahead of a slow-starting
-/// trajectory source (the launcher sets it).
-pub fn run(
-    run: &str,
-    sc: &Scenario,
-    gate_on_trajectory: bool,
-    stats_path: Option<&Path>,
-) -> Result<SimReport, String> {
+/// trajectory source; `gate.predictor` (lockstep, with debris): also until a
+/// subscriber (the predictor) reads the debris observations, so that none of
+/// them is published to nobody. The launcher sets both.
+/// What the simulator waits for at tick 0 in lockstep (see [`run`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Gate {
+    pub trajectory: bool,
+    pub predictor: bool,
+}
+
+pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> Result<SimReport, String> {
     signals::install();
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
@@ -62,7 +66,7 @@ pub fn run(
     let bus = Bus::new(run, "sim").map_err(|e| e.to_string())?;
     let mut state_pub = bus.publisher::<RobotState>(Source::Sim).map_err(|e| e.to_string())?;
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
-    let mut traj_gate = if gate_on_trajectory && sc.run.mode == Mode::Lockstep {
+    let mut traj_gate = if gate.trajectory && sc.run.mode == Mode::Lockstep {
         Some(bus.subscriber::<Trajectory>().map_err(|e| e.to_string())?)
     } else {
         None
@@ -77,6 +81,7 @@ pub fn run(
         None => None,
     };
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
+    let mut obs_gate = gate.predictor && obs_pub.is_some() && sc.run.mode == Mode::Lockstep;
     let dt_s = 1.0 / sc.run.control_hz;
 
     let mut plant = Plant::new(model, PlantConfig::from_scenario(sc), &sc.sim.initial_q);
@@ -130,13 +135,25 @@ pub fn run(
                             traj_gate = None;
                         }
                     }
-                    let gated = k == 0 && traj_gate.is_some();
+                    let mut gated = k == 0 && traj_gate.is_some();
+                    if k == 0 && !gated && obs_gate && spins.is_multiple_of(64) {
+                        obs_gate =
+                            bus.subscriber_count::<DebrisObservation>().map_err(|e| e.to_string())? == 0;
+                    }
+                    gated |= k == 0 && obs_gate;
                     if (plant.has_command_for_current() && !gated) || signals::stop_requested() {
                         break;
                     }
                     if mono_ns() - t0 > limit {
+                        let waiting = if traj_gate.is_some() && k == 0 {
+                            "no trajectory published"
+                        } else if obs_gate && k == 0 {
+                            "no reader of the debris observations (predictor)"
+                        } else {
+                            "no command answering state"
+                        };
                         return Err(format!(
-                            "sim: lockstep: no command answering state {k} within {} s",
+                            "sim: lockstep: {waiting} at tick {k} within {} s",
                             limit / 1_000_000_000
                         ));
                     }

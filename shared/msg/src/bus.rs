@@ -142,6 +142,12 @@ impl Bus {
         Ok(Pub { port, seq: 0, source })
     }
 
+    /// Subscribers connected to `T`'s service now (the service is opened or created).
+    pub fn subscriber_count<T: Topic>(&self) -> Result<usize, BusError> {
+        use iceoryx2::service::port_factory::PortFactory as _;
+        Ok(self.service::<T>()?.dynamic_config().number_of_subscribers())
+    }
+
     pub fn subscriber<T: Topic>(&self) -> Result<Sub<T>, BusError> {
         let port = self
             .service::<T>()?
