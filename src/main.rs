@@ -79,7 +79,21 @@ enum Cmd {
     },
     /// The debris predictor process: tracks debris observations, publishes Koopman forecasts (>= 50 Hz).
     Predictor(ProcArgs),
-    /// Train the Deep Koopman debris model on simulated debris-world data and save the model file.
+    /// Record the debris observations of a run (a sensor's or the sim's) to a file for `train --observations`.
+    Record {
+        #[command(flatten)]
+        common: Common,
+        /// Run id to listen on.
+        #[arg(long, default_value = "default")]
+        run: String,
+        /// File to write (JSON lines, one observation item per line; format: planner/predictor/README.md).
+        #[arg(long)]
+        out: PathBuf,
+        /// Stop after this many wall-clock seconds (default: at the end of the run, or Ctrl-C).
+        #[arg(long)]
+        seconds: Option<f64>,
+    },
+    /// Train the Deep Koopman debris model on simulated debris-world data (or recorded observations) and save the model file.
     Train {
         /// Model file to write (format: planner/deep/README.md).
         #[arg(long, default_value = "deep-attitude.dkm")]
@@ -93,6 +107,12 @@ enum Cmd {
         /// Also write the validation table (and training report) as JSON here.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Train on these recorded observation files (`dkrrt record`) instead of simulated data.
+        #[arg(long, value_delimiter = ',')]
+        observations: Option<Vec<PathBuf>>,
+        /// With --observations: the scenario whose sensor noise and orbit (debris scene) apply.
+        #[arg(long, default_value = "default")]
+        scenario: String,
     },
     /// Accuracy study of the debris predictors: median errors at 0.5/1/2/4 s on held-out runs of every scene.
     PredictEval {
@@ -173,8 +193,26 @@ fn main() -> ExitCode {
             let sc = scenario(&p.common)?;
             dkrrt_planner::predictor_process::run(&p.run, &sc, p.stats.as_deref()).map(|_| true)
         }
-        Cmd::Train { out, quick, epochs, json } => {
-            dkrrt::train::train(&out, quick, epochs, json.as_deref()).map(|_| true)
+        Cmd::Train { out, quick, epochs, json, observations, scenario } => {
+            let recorded = match observations {
+                Some(files) => Some((files, Scenario::load(&scenario).map_err(|e| e.to_string())?)),
+                None => None,
+            };
+            dkrrt::train::train(&out, quick, epochs, json.as_deref(), recorded).map(|_| true)
+        }
+        Cmd::Record { common, run, out, seconds } => {
+            let sc = scenario(&common)?;
+            let r = dkrrt_planner::record_process::run(&run, &sc, &out, seconds)?;
+            eprintln!(
+                "record: {} items written to {} ({} frames, {} lost, {} rejected, {} invalid items)",
+                r.items_written,
+                out.display(),
+                r.frames,
+                r.frames_lost,
+                r.frames_rejected,
+                r.items_invalid
+            );
+            Ok(true)
         }
         Cmd::PredictEval { json, size, model, scenes, methods, seed } => {
             dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())

@@ -342,7 +342,7 @@ fn a_broken_scenario_is_refused_naming_the_field() {
 
 #[test]
 fn every_process_has_help() {
-    for sub in ["launch", "sim", "tracker", "goto", "predictor", "eval"] {
+    for sub in ["launch", "sim", "tracker", "goto", "predictor", "record", "eval"] {
         let out = Command::new(exe()).args([sub, "--help"]).output().unwrap();
         assert!(out.status.success(), "{sub}");
         assert!(String::from_utf8_lossy(&out.stdout).contains("--scenario"), "{sub}");

@@ -27,22 +27,26 @@ struct Harness {
 
 impl Harness {
     fn start(tag: &str) -> Harness {
+        Self::start_process(tag, "predictor", &[])
+    }
+
+    /// `dkrrt SUB --run … --scenario … --stats … EXTRA…`, waiting for its node `SUB`.
+    fn start_process(tag: &str, sub: &str, extra: &[&std::ffi::OsStr]) -> Harness {
         let run = format!("predtest{tag}{}", std::process::id());
         let dir = std::env::temp_dir().join(format!("dkrrt-predtest-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("sc.toml"), scenario_text()).unwrap();
         let stats = dir.join("predictor.json");
-        let child = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
-            .args(["predictor", "--run", &run, "--scenario"])
-            .arg(dir.join("sc.toml"))
-            .arg("--stats")
-            .arg(&stats)
-            .spawn()
-            .unwrap();
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_dkrrt"));
+        cmd.args([sub, "--run", &run, "--scenario"]).arg(dir.join("sc.toml"));
+        if sub == "predictor" {
+            cmd.arg("--stats").arg(&stats);
+        }
+        let child = cmd.args(extra).spawn().unwrap();
         let cfg = run_config(&run).unwrap();
         let t = Instant::now();
-        while !Bus::nodes(&cfg).unwrap().0.iter().any(|(n, _)| n == "predictor") {
-            assert!(t.elapsed() < Duration::from_secs(60), "predictor came up");
+        while !Bus::nodes(&cfg).unwrap().0.iter().any(|(n, _)| n == sub) {
+            assert!(t.elapsed() < Duration::from_secs(60), "{sub} came up");
             std::thread::sleep(Duration::from_millis(20));
         }
         let bus = Some(Bus::new(&run, "sensor").unwrap());
@@ -55,6 +59,12 @@ impl Harness {
 
     /// Publishes the end of the run and returns the predictor's statistics.
     fn finish(mut self, state_pub: &mut dkrrt_msg::bus::Pub<RobotState>) -> serde_json::Value {
+        self.end_run(state_pub);
+        serde_json::from_str(&std::fs::read_to_string(&self.stats).unwrap()).unwrap()
+    }
+
+    /// Publishes the end of the run; the process exits 0.
+    fn end_run(&mut self, state_pub: &mut dkrrt_msg::bus::Pub<RobotState>) {
         let mut st = <RobotState as Zeroed>::zeroed();
         st.header.flags = FLAG_END_OF_RUN;
         st.q = dkrrt_config::Scenario::default_scenario().sim.initial_q;
@@ -68,7 +78,6 @@ impl Harness {
             std::thread::sleep(Duration::from_millis(10));
         };
         assert!(status.success());
-        serde_json::from_str(&std::fs::read_to_string(&self.stats).unwrap()).unwrap()
     }
 }
 
@@ -212,4 +221,35 @@ fn lockstep_forecasts_do_not_depend_on_how_frames_are_batched() {
     }
     assert!(want > 80, "one forecast per frame once tracks are mature: {want}");
     assert_eq!(r["forecasts"].as_u64().unwrap(), want, "{r:#}");
+}
+
+#[test]
+fn the_recorder_writes_every_valid_item_until_the_end_of_the_run() {
+    let out = std::env::temp_dir().join(format!("dkrrt-rec-{}.jsonl", std::process::id()));
+    let mut h = Harness::start_process("c", "record", &["--out".as_ref(), out.as_os_str()]);
+    let mut obs_pub = h.bus().publisher::<DebrisObservation>(Source::Driver).unwrap();
+    let mut state_pub = h.bus().publisher::<RobotState>(Source::Driver).unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let mut bad = 0;
+    for k in 0..40u64 {
+        bad += frame_k(k, true, &mut frame);
+        obs_pub.publish(&mut frame).unwrap();
+        if k % 8 == 7 {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    // The last frames go out just before the end of the run: they are still recorded.
+    h.end_run(&mut state_pub);
+    let obs = dkrrt_predictor::recorded::read_observations(
+        std::io::BufReader::new(std::fs::File::open(&out).unwrap()),
+        "rec",
+    )
+    .unwrap();
+    assert!(bad > 0);
+    assert_eq!(obs.len() as u64, 3 * 40 - bad, "every valid item, no NaN one");
+    assert!(obs.iter().all(|o| o.p.iter().all(|v| v.is_finite())));
+    let last = obs.last().unwrap();
+    assert_eq!(last.t, 39.0 * 0.02);
+    assert_eq!(last.p, pos(last.id, 39.0 * 0.02), "base frame, as published");
+    let _ = std::fs::remove_file(out);
 }

@@ -142,3 +142,54 @@ fn predict_eval_refuses_unknown_methods_and_scenes() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("asteroid-belt"));
 }
+
+#[test]
+fn train_on_recorded_observations_writes_a_model_and_bad_lines_are_named() {
+    let dir = std::env::temp_dir().join(format!("dkrrt-train-rec-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A recording as `dkrrt record` writes it: 20 s of the tumbling rods (events removed).
+    let mut scene = dkrrt_debris::Scene::named("tumbling-rods").unwrap();
+    scene.events.clear();
+    let rec =
+        dkrrt_predictor::eval::record(&scene, dkrrt_debris::SensorConfig::default(), 20.0, 0.01, 9).unwrap();
+    let mut text = Vec::new();
+    for o in &rec.obs {
+        dkrrt_predictor::recorded::write_observation(&mut text, o).unwrap();
+    }
+    let file = dir.join("obs.jsonl");
+    std::fs::write(&file, &text).unwrap();
+    let model = dir.join("rec.dkm");
+    let out = Command::new(exe())
+        .args(["train", "--quick", "--epochs", "2", "--observations"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&model)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert!(stderr.contains(&format!("{} observations from", rec.obs.len())), "{stderr}");
+    assert!(stdout.contains("| 2 |"), "validation table: {stdout}");
+    let m = dkrrt_predictor::TrainedModels::load(&model).unwrap();
+    assert_eq!(m.attitude.model.n, 7);
+
+    // A broken line: the error names the file and the line; nothing is written.
+    let mut lines: Vec<&str> = std::str::from_utf8(&text).unwrap().lines().collect();
+    lines[1] = r#"{"t": 0.02, "id": 1, "p": [0, 0, 0], "q": [0, 0, 0, 0]}"#;
+    let bad = dir.join("bad.jsonl");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let out2 = dir.join("bad.dkm");
+    let out = Command::new(exe())
+        .args(["train", "--quick", "--observations"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&out2)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("{}:2:", bad.display())) && err.contains("unit quaternion"), "{err}");
+    assert!(!out2.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

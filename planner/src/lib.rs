@@ -12,3 +12,4 @@ pub mod goto;
 pub mod predict;
 pub mod predictor_process;
 pub mod process;
+pub mod record_process;

@@ -185,6 +185,19 @@ pub struct TrackFilter {
     pub maneuvers: u32,
 }
 
+/// The filter's motion model: state `x` ([`dkrrt_koopman::debris_state`] layout) `dt`
+/// seconds later — Clohessy–Wiltshire translation at mean motion `frame_rate`, constant body
+/// rate, the LVLH frame turning at `frame_rate`.
+pub fn propagate(x: &[f64; N], frame_rate: f64, dt: f64) -> [f64; N] {
+    let mut x = *x;
+    cw_propagate(frame_rate, dt, &mut x[0..6]);
+    let w = [x[10] * dt, x[11] * dt, x[12] * dt];
+    let q = quat_mul(&quat_mul(&quat_exp([0.0, 0.0, -frame_rate * dt]), &x[6..10]), &quat_exp(w));
+    x[6..10].copy_from_slice(&q);
+    normalise(&mut x[6..10]);
+    x
+}
+
 impl TrackFilter {
     /// Initialise from the first pose (velocity and rate zero, large uncertainty).
     pub fn new(cfg: &FilterConfig, t: f64, p: &[f64; 3], q: &[f64; 4]) -> Self {
@@ -205,14 +218,7 @@ impl TrackFilter {
     /// Predicted state at time `t ≥ self.t` (Clohessy–Wiltshire translation, constant body
     /// rate), without updating.
     pub fn predicted(&self, cfg: &FilterConfig, t: f64) -> [f64; N] {
-        let dt = t - self.t;
-        let mut x = self.x;
-        cw_propagate(cfg.frame_rate, dt, &mut x[0..6]);
-        let w = [x[10] * dt, x[11] * dt, x[12] * dt];
-        let q = quat_mul(&quat_mul(&quat_exp([0.0, 0.0, -cfg.frame_rate * dt]), &x[6..10]), &quat_exp(w));
-        x[6..10].copy_from_slice(&q);
-        normalise(&mut x[6..10]);
-        x
+        propagate(&self.x, cfg.frame_rate, t - self.t)
     }
 
     /// Measurement update with a pose at time `t > self.t`.

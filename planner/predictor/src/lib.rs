@@ -23,6 +23,7 @@ pub mod filter;
 mod kernels;
 pub mod models;
 pub mod predictor;
+pub mod recorded;
 pub mod training;
 
 pub use eval::{run_study, StudyConfig, StudyRow};
