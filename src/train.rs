@@ -50,7 +50,8 @@ pub fn train(
         Some((files, sc)) => train_recorded(&files, &sc, &opts)?,
         None => train_simulated(&opts)?,
     };
-    report_and_save(&m, out, json, t.elapsed().as_secs_f64())
+    report_and_save(&m, out, json, t.elapsed().as_secs_f64())?;
+    Ok(m)
 }
 
 /// Data from the recorded files; `origin:line` errors for bad lines.
@@ -106,12 +107,7 @@ fn train_simulated(opts: &TrainOptions) -> Result<TrainedModels, String> {
 }
 
 /// Prints the training report and the validation table, saves the model (and re-reads it).
-fn report_and_save(
-    m: &TrainedModels,
-    out: &Path,
-    json: Option<&Path>,
-    secs: f64,
-) -> Result<TrainedModels, String> {
+fn report_and_save(m: &TrainedModels, out: &Path, json: Option<&Path>, secs: f64) -> Result<(), String> {
     if let Some(r) = &m.report {
         println!(
             "trained in {secs:.1} s ({} epochs, best {}, {} training / {} validation windows)",
@@ -144,7 +140,7 @@ fn report_and_save(
         std::fs::write(j, serde_json::to_string_pretty(&v).unwrap())
             .map_err(|e| format!("write {}: {e}", j.display()))?;
     }
-    Ok(m.clone())
+    Ok(())
 }
 
 /// Runs the accuracy study, prints the table, writes the JSON rows.

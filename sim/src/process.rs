@@ -37,6 +37,13 @@ pub struct SimReport {
     pub rt: RtReport,
 }
 
+/// What the simulator waits for at tick 0 in lockstep (see [`run`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Gate {
+    pub trajectory: bool,
+    pub predictor: bool,
+}
+
 /// Runs the simulator until the scenario's duration has elapsed in plant
 /// time, or SIGINT/SIGTERM. The last published state carries `FLAG_END_OF_RUN`.
 ///
@@ -45,13 +52,6 @@ pub struct SimReport {
 /// trajectory source; `gate.predictor` (lockstep, with debris): also until a
 /// subscriber (the predictor) reads the debris observations, so that none of
 /// them is published to nobody. The launcher sets both.
-/// What the simulator waits for at tick 0 in lockstep (see [`run`]).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Gate {
-    pub trajectory: bool,
-    pub predictor: bool,
-}
-
 pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> Result<SimReport, String> {
     signals::install();
     let model = sc.load_arm().map_err(|e| e.to_string())?;
