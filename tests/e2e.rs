@@ -202,41 +202,52 @@ fn lockstep_run_reaches_the_goal_exactly() {
     let _ = std::fs::remove_file(rp);
 }
 
-#[test]
-fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
-    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let rp = report_path("kill");
+/// Launches the default run, SIGKILLs process `name` mid-motion (the default trajectory
+/// takes ~4 s) and checks what every crash must give: the launcher stops the rest promptly,
+/// the run fails naming the crash, the victim's signal is reported, and nothing of the run
+/// is left on the bus (the dead node's resources were removed). Returns the report and the
+/// launcher's output after start-up.
+fn kill_mid_run(tag: &str, name: &str) -> (Value, String) {
+    let rp = report_path(tag);
     let (mut child, rest, pids) = start_launch(&["--duration", "10"], &rp);
-    let sim_pid = pids["sim"];
-    // Mid-motion (the default trajectory takes ~4 s).
     std::thread::sleep(Duration::from_millis(1500));
     // SAFETY: kill(2) on the pid the launcher just reported.
-    assert_eq!(unsafe { libc::kill(sim_pid, libc::SIGKILL) }, 0);
+    assert_eq!(unsafe { libc::kill(pids[name], libc::SIGKILL) }, 0);
     let t0 = Instant::now();
     let status = child.wait().unwrap();
-    let rest = rest.join().unwrap();
+    let rest = rest.join().unwrap().join("\n");
     assert!(t0.elapsed() < Duration::from_secs(15), "launcher stopped the rest promptly");
     assert!(!status.success(), "a crashed process makes the run fail");
     let r = read_report(&rp);
     assert_eq!(r["ok"], false);
     let reason = r["stop_reason"].as_str().unwrap();
-    assert!(reason.contains("sim") && reason.contains("signal 9"), "{reason}");
-    let procs = r["processes"].as_array().unwrap();
-    assert_eq!(procs[0]["signal"], 9);
+    assert!(reason.contains(name) && reason.contains("signal 9"), "{reason}");
+    assert_eq!(proc_of(&r, name)["signal"], 9);
+    assert!(rest.contains(&format!("{name} died")), "summary names the crash: {rest}");
+    let run = r["run_id"].as_str().unwrap();
+    let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
+    assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
+    let _ = std::fs::remove_file(rp);
+    (r, rest)
+}
+
+/// The report's entry of process `name`.
+fn proc_of<'a>(r: &'a Value, name: &str) -> &'a Value {
+    r["processes"].as_array().unwrap().iter().find(|p| p["name"] == name).unwrap()
+}
+
+#[test]
+fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (r, _) = kill_mid_run("kill", "sim");
     // The tracker noticed, braked, and exited cleanly on the launcher's SIGTERM.
-    assert_eq!(procs[1]["exit_code"], 0, "{}", procs[1]);
+    assert_eq!(proc_of(&r, "tracker")["exit_code"], 0, "{}", proc_of(&r, "tracker"));
     assert!(num(&r, "/safe_hold/entries") >= 1.0);
     let events = r["safe_hold"]["events"].as_array().unwrap();
     assert!(
         events.iter().any(|e| e["reason"] == "stale_state" && e["to"] == "brake"),
         "no stale-state safe hold in {events:?}"
     );
-    assert!(rest.join("\n").contains("sim died"), "summary names the crash: {rest:?}");
-    // The dead sim's iceoryx2 resources were removed: nothing of the run is left.
-    let run = r["run_id"].as_str().unwrap();
-    let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
-    assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
-    let _ = std::fs::remove_file(rp);
 }
 
 /// Starts a launch and waits until all its processes are alive. Returns the
@@ -273,38 +284,19 @@ fn start_launch(
 #[test]
 fn killing_the_predictor_fails_the_run_and_leaves_the_arm_safe() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let rp = report_path("kill-pred");
-    let (mut child, rest, pids) = start_launch(&["--duration", "10"], &rp);
-    std::thread::sleep(Duration::from_millis(1500));
-    // SAFETY: kill(2) on the pid the launcher just reported.
-    assert_eq!(unsafe { libc::kill(pids["predictor"], libc::SIGKILL) }, 0);
-    let status = child.wait().unwrap();
-    let rest = rest.join().unwrap().join("\n");
-    assert!(!status.success(), "a crashed predictor makes the run fail");
-    let r = read_report(&rp);
-    assert_eq!(r["ok"], false);
-    let reason = r["stop_reason"].as_str().unwrap();
-    assert!(reason.contains("predictor") && reason.contains("signal 9"), "{reason}");
-    let procs = r["processes"].as_array().unwrap();
-    assert_eq!(procs[1]["name"], "predictor");
-    assert_eq!(procs[1]["signal"], 9);
+    let (r, rest) = kill_mid_run("kill-pred", "predictor");
     // The others were stopped by the launcher (SIGTERM, well before the run's 10 s) and
     // exited cleanly. The arm side (sim or driver) was stopped by the signal, which by the
     // driver contract publishes a last state with END_OF_RUN and engages the brakes.
-    for i in [0, 2, 3] {
-        assert_eq!(procs[i]["exit_code"], 0, "{}", procs[i]);
+    for name in ["sim", "tracker", "goto"] {
+        assert_eq!(proc_of(&r, name)["exit_code"], 0, "{}", proc_of(&r, name));
     }
     assert_eq!(r["sim"]["stopped_by_signal"], true, "{:#}", r["sim"]);
     assert!(num(&r, "/duration_s") < 9.0);
     // The report keeps the scenario's method; the summary says there are no statistics.
     assert_eq!(r["predictor"]["method"], "deep-koopman-online");
     assert!(r["predictor"]["forecasts"].is_null());
-    assert!(rest.contains("predictor died"), "{rest}");
     assert!(rest.contains("predictor (deep-koopman-online)  no statistics"), "{rest}");
-    let run = r["run_id"].as_str().unwrap();
-    let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
-    assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
-    let _ = std::fs::remove_file(rp);
 }
 
 #[test]
