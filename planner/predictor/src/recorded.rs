@@ -12,9 +12,9 @@
 //! **Trajectories**: every object is tracked by the predictor's own gate and pose filter (the
 //! scenario's noise, constant-velocity models); the filtered `(q, ω)` is sampled on the model
 //! grid `k·dt` by propagating the estimate of the last accepted observation
-//! ([`crate::filter::propagate`]). A gap longer than `max_gap`, a re-initialised track or a
-//! rejected jump ends a trajectory; the first `warmup` seconds of each are skipped (filter
-//! convergence).
+//! ([`crate::filter::propagate`]). A gap longer than `max_gap` between accepted observations
+//! (dropouts, or observations the gate rejected) or a re-initialised track ends a trajectory;
+//! the first `warmup` seconds of each are skipped (filter convergence).
 
 use crate::filter::propagate;
 use crate::predictor::{DebrisPredictor, PredictorConfig};
