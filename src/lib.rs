@@ -8,4 +8,5 @@
 
 pub mod launch;
 pub mod lockstep;
+pub mod study;
 pub mod train;

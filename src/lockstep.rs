@@ -1,6 +1,12 @@
-//! In-process lockstep evaluation: the same plant, tracker and trajectory
-//! cores as the processes, wired directly (no IPC, no clock), with the same
-//! timing contract. Deterministic: the same scenario gives the same numbers.
+//! In-process lockstep evaluation: the same sim, tracker, predictor and planner cores as the
+//! processes, wired directly (no IPC, no clock), with the same timing contract. Deterministic:
+//! the same scenario gives the same numbers.
+//!
+//! The trajectory source is the scenario's `planner.method`: `straight` (the goto core: one
+//! jerk-limited line to the goal, planned from the first state) or `dk-rrt` (the replanning
+//! core, one cycle every `1/planner.rate_hz` of plant time with `planner.iterations` of work).
+//! A plan computed from the state at plant time `t` starts at `t + planner.commit_ms`, as in
+//! real time, so lockstep results carry the real-time latency.
 
 use dkrrt_config::arm::contract_limits;
 use dkrrt_config::Scenario;
@@ -8,20 +14,26 @@ use dkrrt_msg::{ContractLimits, DebrisForecast, DebrisObservation, Trajectory, Z
 use dkrrt_otg::{KinState, Limits};
 use dkrrt_planner::goto::plan;
 use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
-use dkrrt_predictor::GateStats;
-use dkrrt_sim::debris::{DebrisSide, DebrisStats};
-use dkrrt_sim::plant::{Plant, PlantConfig, PlantStats};
+use dkrrt_predictor::{GateStats, Models};
+use dkrrt_rrt::{Fallbacks, PlannerConfig, ReplanConfig, Replanner, TrackerView};
+use dkrrt_rt::hist::Percentiles;
+use dkrrt_sim::core::SimCore;
+use dkrrt_sim::debris::DebrisStats;
+use dkrrt_sim::plant::PlantStats;
 use dkrrt_tracker::ctrl::{ModeEvent, Tracker, TrackerConfig};
 
 /// Result of an in-process run.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct EvalReport {
+    pub method: String,
     pub ticks: u64,
     pub trajectory_duration_s: f64,
     pub tracking_error_rad_rms: f64,
     pub tracking_error_rad_max: f64,
     pub final_error_rad: f64,
     pub safe_hold_entries: u64,
+    /// Plant time the arm was first within the goal tolerance (every joint), s.
+    pub goal_reached_s: Option<f64>,
     pub events: Vec<ModeEvent>,
     pub plant: PlantStats,
     pub final_q: [f64; NJ],
@@ -29,6 +41,8 @@ pub struct EvalReport {
     pub debris: Option<DebrisStats>,
     /// Predictor figures, `null` without debris.
     pub predictor: Option<PredictorFigures>,
+    /// Planner figures, `null` for the straight method.
+    pub planner: Option<PlannerFigures>,
 }
 
 /// What the in-process predictor did.
@@ -41,146 +55,277 @@ pub struct PredictorFigures {
     pub gate: GateStats,
 }
 
-/// The debris side and the predictor, wired in process.
-pub struct DebrisLoop {
-    pub side: DebrisSide,
+/// What the in-process planner did (the same fields as the launcher's report).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlannerFigures {
+    pub method: String,
+    pub cycles: u64,
+    pub replans: u64,
+    /// Compute time of the cycles that planned, ms (wall clock of this machine).
+    pub plan_ms: Percentiles,
+    pub first_plan_ms: Option<f64>,
+    pub deadline_misses: u64,
+    pub fallbacks: Fallbacks,
+    pub min_predicted_clearance_m: Option<f64>,
+    pub plans_rejected_by_final_check: u64,
+    pub iterations: u64,
+}
+
+/// The predictor, wired in process.
+pub struct PredictorLoop {
     pub core: PredictorCore,
-    pub frame: Box<DebrisObservation>,
     pub forecast: Box<DebrisForecast>,
     pub forecasts: u64,
     pub tracks: u32,
+    /// A forecast newer than the planner's last cycle.
+    pub fresh: bool,
     lim: ContractLimits,
     rate_hz: f64,
 }
 
+/// The trajectory source.
+pub enum TrajSource {
+    /// One jerk-limited line to the goal.
+    Straight { traj: Box<Trajectory>, duration: f64 },
+    /// The DK-RRT replanning loop.
+    Planner { core: Box<Replanner>, out: Box<Trajectory>, next_ns: u64, cycle_ns: u64 },
+}
+
 /// The wired cores, stepped one tick at a time.
 pub struct Lockstep {
-    pub plant: Plant,
+    pub sim: SimCore,
     pub tracker: Tracker,
     pub period_ns: u64,
     pub events: Vec<ModeEvent>,
-    pub traj: Box<Trajectory>,
-    pub traj_duration: f64,
-    pub debris: Option<DebrisLoop>,
-    dt_s: f64,
+    pub predictor: Option<PredictorLoop>,
+    frame: Box<DebrisObservation>,
+    pub source: TrajSource,
+    pub goal: [f64; NJ],
+    goal_tol: f64,
+    pub goal_reached_s: Option<f64>,
+    started: bool,
+    clock: fn() -> u64,
+}
+
+/// The planner settings of a scenario.
+pub fn planner_configs(sc: &Scenario) -> (PlannerConfig, ReplanConfig) {
+    let p = &sc.planner;
+    let pc = PlannerConfig {
+        delta_m: p.delta_m,
+        lookahead_s: p.lookahead_s,
+        seed: p.seed,
+        ..PlannerConfig::default()
+    };
+    let rc = ReplanConfig {
+        cycle_s: 1.0 / p.rate_hz,
+        deadline_s: p.deadline_ms * 1e-3,
+        commit_s: p.commit_ms * 1e-3,
+        margin_m: p.margin_m,
+        iterations: p.iterations,
+        ..ReplanConfig::default()
+    };
+    (pc, rc)
+}
+
+/// The replanning core of a scenario.
+pub fn replanner(sc: &Scenario, model: dkrrt_model::ArmModel) -> Replanner {
+    let (pc, rc) = planner_configs(sc);
+    let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    Replanner::new(model, limits, pc, rc, sc.has_debris())
+}
+
+fn mono_ns() -> u64 {
+    dkrrt_rt::clock::mono_ns()
 }
 
 impl Lockstep {
-    /// Builds the cores for `sc` and plans the trajectory to its goal from the
-    /// initial state, starting at plant time 0.
+    /// Builds the cores for `sc` (an `[episode]` must already be resolved). The predictor's
+    /// models are fitted as the scenario says (`predictor.fit`).
     pub fn new(sc: &Scenario) -> Result<Lockstep, String> {
+        let models = if sc.has_debris() { Some(fit_models(sc)?) } else { None };
+        Self::with_models(sc, models)
+    }
+
+    /// As [`Lockstep::new`], with the predictor's models given (fitted once for many episodes).
+    pub fn with_models(sc: &Scenario, models: Option<Models>) -> Result<Lockstep, String> {
         let model = sc.load_arm().map_err(|e| e.to_string())?;
-        let debris = if sc.has_debris() {
-            Some(DebrisLoop {
-                side: DebrisSide::new(sc)?,
-                core: PredictorCore::new(fit_models(sc)?, sc),
-                frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
+        let predictor = match (sc.has_debris(), models) {
+            (true, Some(m)) => Some(PredictorLoop {
+                core: PredictorCore::new(m, sc),
                 forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
                 forecasts: 0,
                 tracks: 0,
+                fresh: false,
                 lim: contract_limits(&model),
                 rate_hz: sc.predictor.rate_hz,
-            })
-        } else {
-            None
+            }),
+            (true, None) => {
+                return Err("lockstep: a scenario with debris needs the predictor's models".into())
+            }
+            _ => None,
         };
-        let plant = Plant::new(model.clone(), PlantConfig::from_scenario(sc), &sc.sim.initial_q);
-        let mut debris = debris;
-        if let Some(d) = debris.as_mut() {
-            d.side.check(plant.model(), &plant.true_state().0);
-        }
-        let tracker = Tracker::new(model, TrackerConfig::from_scenario(sc));
-        let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
-        let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
-        let d = plan(
-            &KinState::rest(sc.sim.initial_q),
-            &sc.goal.q,
-            &limits,
-            sc.period_ns() as f64 * 1e-9,
-            1,
-            0,
-            &mut traj,
-        )
-        .map_err(|e| e.to_string())?;
+        let sim = SimCore::new(sc, model.clone())?;
+        let tracker = Tracker::new(model.clone(), TrackerConfig::from_scenario(sc));
+        let source = if sc.planner.method == "dk-rrt" {
+            let cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
+            TrajSource::Planner {
+                core: Box::new(replanner(sc, model)),
+                out: Box::new(<Trajectory as Zeroed>::zeroed()),
+                next_ns: 0,
+                cycle_ns,
+            }
+        } else {
+            let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
+            let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+            let d = plan(
+                &KinState::rest(sc.sim.initial_q),
+                &sc.goal.q,
+                &limits,
+                sc.period_ns() as f64 * 1e-9,
+                1,
+                0,
+                &mut traj,
+            )
+            .map_err(|e| e.to_string())?;
+            TrajSource::Straight { traj, duration: d }
+        };
         Ok(Lockstep {
-            plant,
+            sim,
             tracker,
             period_ns: sc.period_ns(),
-            events: Vec::with_capacity(64),
-            traj,
-            traj_duration: d,
-            debris,
-            dt_s: sc.period_ns() as f64 * 1e-9,
+            events: Vec::with_capacity(256),
+            predictor,
+            frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
+            source,
+            goal: sc.goal.q,
+            goal_tol: 0.01,
+            goal_reached_s: None,
+            started: false,
+            clock: mono_ns,
         })
     }
 
-    /// One tick: measure, control, apply, step. `deliver_state = false`
-    /// simulates a lost state message.
+    /// One tick: measure, (plan), control, apply, step. `deliver_state = false` simulates a lost
+    /// state message.
     pub fn tick(&mut self, deliver_state: bool) {
-        let m = self.plant.measured();
+        let m = self.sim.plant.measured();
         let stamp = m.tick * self.period_ns;
+        if let TrajSource::Planner { core, out, next_ns, cycle_ns } = &mut self.source {
+            if deliver_state && stamp >= *next_ns {
+                *next_ns = stamp + *cycle_ns;
+                let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };
+                let fc = self
+                    .predictor
+                    .as_mut()
+                    .and_then(|p| std::mem::take(&mut p.fresh).then_some(&*p.forecast));
+                let mut clock = self.clock;
+                let d = core.step(stamp, &m.q, view, fc, &self.goal, &mut clock, out);
+                if d.publish {
+                    if let Some(e) = self.tracker.set_trajectory(out) {
+                        push(&mut self.events, e);
+                    }
+                }
+            }
+        }
         let out = self.tracker.tick(deliver_state.then_some((m.tick, stamp, &m.q, &m.qd)));
         if let Some(e) = out.event {
-            if self.events.len() < self.events.capacity() {
-                self.events.push(e);
+            push(&mut self.events, e);
+        }
+        // The straight source publishes once the first state is known (as `dkrrt goto`).
+        if !self.started {
+            self.started = true;
+            if let TrajSource::Straight { traj, .. } = &self.source {
+                if let Some(e) = self.tracker.set_trajectory(traj) {
+                    push(&mut self.events, e);
+                }
             }
         }
         if deliver_state {
-            self.plant.offer_command(out.state_seq, &out.tau);
+            self.sim.plant.offer_command(out.state_seq, &out.tau);
         }
-        self.plant.step();
-        if let Some(d) = self.debris.as_mut() {
-            // As in the processes: the world advances with the plant, contacts are checked on
-            // the true arm state, observations go to the predictor, forecasts on the plant clock.
-            d.side.step(self.dt_s);
-            d.side.check(self.plant.model(), &self.plant.true_state().0);
-            let (core, lim, rate_hz, fc) = (&mut d.core, &d.lim, d.rate_hz, &mut d.forecast);
-            let (forecasts, tracks) = (&mut d.forecasts, &mut d.tracks);
-            let _ = d.side.drain_observations::<()>(&mut d.frame, |f| {
-                let n = core.observe_then_forecast(f, lim, rate_hz, fc);
+        let pred = &mut self.predictor;
+        let _ = self.sim.step::<()>(&mut self.frame, |f| {
+            if let Some(p) = pred.as_mut() {
+                let n = p.core.observe_then_forecast(f, &p.lim, p.rate_hz, &mut p.forecast);
                 if n > 0 {
-                    *forecasts += 1;
-                    *tracks = n as u32;
+                    p.forecasts += 1;
+                    p.tracks = n as u32;
+                    p.fresh = true;
                 }
-                Ok(())
-            });
+            }
+            Ok(())
+        });
+        let q: [f64; NJ] = self.sim.plant.true_state().0.into();
+        if self.goal_reached_s.is_none() && (0..NJ).all(|i| (q[i] - self.goal[i]).abs() <= self.goal_tol) {
+            self.goal_reached_s = Some(self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9);
         }
+    }
+
+    /// A contact happened.
+    pub fn collided(&self) -> bool {
+        self.sim.debris.as_ref().is_some_and(|d| d.stats.collided())
+    }
+
+    /// The report of the run so far.
+    pub fn report(&self, sc: &Scenario) -> EvalReport {
+        let (q, _) = self.sim.plant.true_state();
+        let goal = self.goal;
+        let final_error_rad = (0..NJ).map(|i| (goal[i] - q[i]).abs()).fold(0.0, f64::max);
+        let st = self.tracker.stats;
+        let (duration, planner) = match &self.source {
+            TrajSource::Straight { duration, .. } => (*duration, None),
+            TrajSource::Planner { core, .. } => (
+                core.current().duration_s,
+                Some(PlannerFigures {
+                    method: sc.planner.method.clone(),
+                    cycles: core.stats.cycles,
+                    replans: core.stats.replans,
+                    plan_ms: core.plan_ms(),
+                    first_plan_ms: core.stats.first_plan_ms,
+                    deadline_misses: core.stats.deadline_misses,
+                    fallbacks: core.stats.fallbacks,
+                    min_predicted_clearance_m: core.stats.min_predicted_clearance_m,
+                    plans_rejected_by_final_check: core.stats.plans_rejected_by_final_check,
+                    iterations: core.stats.planner_iterations,
+                }),
+            ),
+        };
+        EvalReport {
+            method: sc.planner.method.clone(),
+            ticks: self.sim.plant.tick(),
+            trajectory_duration_s: duration,
+            tracking_error_rad_rms: st.track.rms(),
+            tracking_error_rad_max: st.track.max_abs,
+            final_error_rad,
+            safe_hold_entries: st.safe_hold_entries,
+            goal_reached_s: self.goal_reached_s,
+            events: self.events.clone(),
+            plant: self.sim.plant.stats,
+            final_q: q.into(),
+            debris: self.sim.debris.as_ref().map(|d| d.stats),
+            predictor: self.predictor.as_ref().map(|d| PredictorFigures {
+                method: sc.predictor.method.clone(),
+                forecasts: d.forecasts,
+                tracks: d.tracks,
+                observations: d.core.counters,
+                gate: *d.core.gate(),
+            }),
+            planner,
+        }
+    }
+}
+
+fn push(events: &mut Vec<ModeEvent>, e: ModeEvent) {
+    if events.len() < events.capacity() {
+        events.push(e);
     }
 }
 
 /// Runs the scenario's duration in lockstep, in process.
 pub fn run(sc: &Scenario) -> Result<EvalReport, String> {
     let mut ls = Lockstep::new(sc)?;
-    let total = sc.ticks();
-    // The first state arrives before the trajectory (as in the process set).
-    ls.tick(true);
-    if let Some(e) = ls.tracker.set_trajectory(&ls.traj) {
-        ls.events.push(e);
-    }
-    for _ in 1..total {
+    for _ in 0..sc.ticks() {
         ls.tick(true);
     }
-    let (q, _) = ls.plant.true_state();
-    let goal = sc.goal.q;
-    let final_error_rad = (0..NJ).map(|i| (goal[i] - q[i]).abs()).fold(0.0, f64::max);
-    let st = ls.tracker.stats;
-    Ok(EvalReport {
-        ticks: total,
-        trajectory_duration_s: ls.traj_duration,
-        tracking_error_rad_rms: st.track.rms(),
-        tracking_error_rad_max: st.track.max_abs,
-        final_error_rad,
-        safe_hold_entries: st.safe_hold_entries,
-        events: ls.events.clone(),
-        plant: ls.plant.stats,
-        final_q: q.into(),
-        debris: ls.debris.as_ref().map(|d| d.side.stats),
-        predictor: ls.debris.as_ref().map(|d| PredictorFigures {
-            method: sc.predictor.method.clone(),
-            forecasts: d.forecasts,
-            tracks: d.tracks,
-            observations: d.core.counters,
-            gate: *d.core.gate(),
-        }),
-    })
+    Ok(ls.report(sc))
 }

@@ -141,6 +141,27 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
+    /// Threat episodes in lockstep, per scene and method: completion, collisions, planning time.
+    Study {
+        /// Comma-separated scenes (default: all four).
+        #[arg(long, value_delimiter = ',')]
+        scenes: Option<Vec<String>>,
+        /// Episodes per scene.
+        #[arg(long, default_value_t = 10)]
+        episodes: u64,
+        /// Comma-separated methods: straight, dk-rrt.
+        #[arg(long, value_delimiter = ',', default_value = "straight,dk-rrt")]
+        methods: Vec<String>,
+        /// Master seed of the episodes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write {rows, summary} as JSON here (rows also stream to FILE.rows as JSON lines).
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Worker threads (default: the available cores).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
 }
 
 fn scenario(c: &Common) -> Result<Scenario, String> {
@@ -153,6 +174,11 @@ fn scenario(c: &Common) -> Result<Scenario, String> {
     }
     // Validate against the arm now, so a bad scenario fails before anything starts.
     sc.load_arm().map_err(|e| e.to_string())?;
+    // A threat episode: every process regenerates the same start, goal and debris.
+    let duration = sc.run.duration_s;
+    if dkrrt_episodes::resolve(&mut sc)?.is_some() && c.duration.is_some() {
+        sc.run.duration_s = duration;
+    }
     Ok(sc)
 }
 
@@ -217,6 +243,39 @@ fn main() -> ExitCode {
         Cmd::PredictEval { json, size, model, scenes, methods, seed } => {
             dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
                 .map(|_| true)
+        }
+        Cmd::Study { scenes, episodes, methods, seed, json, threads } => {
+            let scenes =
+                scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
+            if let Some(p) = &json {
+                std::fs::write(p, "").map_err(|e| format!("--json {}: {e}", p.display()))?;
+            }
+            let threads =
+                threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            let opts = dkrrt::study::StudyOptions {
+                scenes: scenes.clone(),
+                episodes,
+                methods: methods.clone(),
+                seed,
+                threads,
+            };
+            let rows_path = json.as_ref().map(|p| p.with_extension("rows.jsonl"));
+            let t0 = std::time::Instant::now();
+            let rows = dkrrt::study::run(&opts, rows_path.as_deref(), true)?;
+            println!("{}", dkrrt::study::table(&rows, &scenes, &methods));
+            println!(
+                "{} episodes x methods in {:.1} s wall ({} threads, seed {seed})",
+                rows.len(),
+                t0.elapsed().as_secs_f64(),
+                threads
+            );
+            if let Some(p) = &json {
+                let doc = serde_json::json!({ "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "rows": rows });
+                std::fs::write(p, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?)
+                    .map_err(|e| format!("--json {}: {e}", p.display()))?;
+                println!("rows: {}", p.display());
+            }
+            Ok(rows.iter().all(|r| r.error.is_none()))
         }
         Cmd::Eval { common } => {
             let sc = scenario(&common)?;

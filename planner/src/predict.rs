@@ -9,11 +9,12 @@
 //!
 //! [`PredictorCore::observe_frame`] and [`PredictorCore::forecast_into`] allocate nothing.
 
+use dkrrt_collision::interpolate_pose;
 use dkrrt_config::Scenario;
-use dkrrt_debris::{Observation, Scene, SCENE_NAMES};
+use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
 use dkrrt_msg::{
-    ContractLimits, DebrisForecast, DebrisObservation, ForecastStep, DEBRIS_HAS_VELOCITY, FORECAST_STEPS,
-    MAX_DEBRIS,
+    ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
+    FORECAST_STEPS, MAX_DEBRIS,
 };
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
 use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
@@ -106,10 +107,13 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
 
 fn training_runs(sc: &Scenario, scene: &Scene) -> Result<Vec<Recording>, String> {
     let named = SCENE_NAMES.contains(&sc.debris.scene.as_str());
+    let generic = sc.predictor.fit == "generic";
     (0..sc.predictor.fit_runs as u64)
         .map(|r| {
             let seed = sc.predictor.fit_seed + r;
-            let s = if named {
+            let s = if generic {
+                generic_scene(seed)
+            } else if named {
                 perturbed_scene(&sc.debris.scene, seed, 1.0).map_err(|e| e.to_string())?
             } else {
                 scene.clone()
@@ -119,14 +123,31 @@ fn training_runs(sc: &Scenario, scene: &Scene) -> Result<Vec<Recording>, String>
         .collect()
 }
 
+/// A random scene for `predictor.fit = "generic"`: objects of every shape at 2–12 m, up to
+/// 1.5 m/s and 1.5 rad/s, with small unmodelled accelerations. It shares nothing with any
+/// evaluated episode (its seeds are offset far from the episodes').
+pub fn generic_scene(seed: u64) -> Scene {
+    let params = RandomSceneParams {
+        max_speed: 1.5,
+        max_rate: 1.5,
+        perturbation: PerturbationConfig {
+            accel_bias_sigma: 1e-4,
+            accel_noise_sigma: 5e-5,
+            accel_noise_tau: 30.0,
+        },
+        ..RandomSceneParams::default()
+    };
+    Scene::random(0x5eed_0000_0000 + seed, 24, &params)
+}
+
 /// Predictor + forecast buffer + the frame/message conversions.
 pub struct PredictorCore {
     pred: DebrisPredictor,
     buf: ForecastBuffer,
     base: [f64; 3],
     steps: usize,
-    /// Bounding radius per debris id (from the observations).
-    radii: heapless::Vec<(u32, f64), { 2 * MAX_DEBRIS }>,
+    /// Bounding radius and shape per debris id (from the observations).
+    radii: heapless::Vec<(u32, f64, DebrisShape), { 2 * MAX_DEBRIS }>,
     /// Newest observation time seen (plant clock), s.
     pub newest_t: f64,
     pub counters: ObsCounters,
@@ -192,7 +213,7 @@ impl PredictorCore {
                 ObserveOutcome::Rejected(_) => self.counters.items_gated += 1,
                 _ => {
                     self.newest_t = self.newest_t.max(t);
-                    self.set_radius(it.id, it.bounding_radius);
+                    self.set_shape(it.id, it.bounding_radius, it.shape);
                 }
             }
         }
@@ -228,25 +249,25 @@ impl PredictorCore {
         }
     }
 
-    fn set_radius(&mut self, id: u32, r: f64) {
+    fn set_shape(&mut self, id: u32, r: f64, shape: DebrisShape) {
         if let Some(e) = self.radii.iter_mut().find(|e| e.0 == id) {
-            e.1 = r;
-        } else if self.radii.push((id, r)).is_err() {
+            (e.1, e.2) = (r, shape);
+        } else if self.radii.push((id, r, shape)).is_err() {
             // Full: forget the oldest entry (ids of long-gone tracks).
             self.radii.remove(0);
-            let _ = self.radii.push((id, r));
+            let _ = self.radii.push((id, r, shape));
         }
     }
 
-    fn radius(&self, id: u32) -> f64 {
-        self.radii.iter().find(|e| e.0 == id).map_or(0.0, |e| e.1)
+    fn shape(&self, id: u32) -> (f64, DebrisShape) {
+        self.radii.iter().find(|e| e.0 == id).map_or((0.0, DebrisShape::default()), |e| (e.1, e.2))
     }
 
     /// Forecasts every mature track and writes them into `msg` on the common grid
     /// `t0 + k·dt, k = 1..=steps` with `t0` = the newest track time. Positions are in the base
-    /// frame; `sigma_m` = position bound + attitude bound × bounding radius (the shape's
-    /// extremities move by that much under an attitude error), capped at 2 × the radius for
-    /// the attitude part. Returns the number of tracks written (0: nothing to publish).
+    /// frame; `sigma_m` = position bound + attitude bound × the shape's rotation lever (its
+    /// surface moves by at most that much under an attitude error; the attitude bound capped at
+    /// 2 rad), `sigma_pos_m` = the position bound alone (for the bounding sphere). Returns the number of tracks written (0: nothing to publish).
     pub fn forecast_into(&mut self, msg: &mut DebrisForecast) -> usize {
         let n = self.pred.forecast(&mut self.buf);
         let h = self.buf.horizon();
@@ -261,10 +282,12 @@ impl PredictorCore {
         let b = self.base;
         for i in 0..n {
             let id = self.buf.id(i);
-            let radius = self.radius(id);
+            let (radius, shape) = self.shape(id);
+            let lever = shape.rotation_lever(radius);
             let tr = &mut msg.tracks[i];
             tr.id = id;
             tr.bounding_radius = radius;
+            tr.shape = shape;
             let lag = ((t0 - self.buf.t0(i)) / dt).max(0.0);
             for k in 1..=self.steps {
                 // Fractional step of this track's own forecast that falls on the common grid.
@@ -272,25 +295,21 @@ impl PredictorCore {
                 let j = (s.floor() as usize).clamp(1, h - 1);
                 let f = s - j as f64; // > 1 beyond the track's horizon: linear extrapolation
                 let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
-                let mut q = [0.0; 4];
-                let dot: f64 = (0..4).map(|m| a[6 + m] * c[6 + m]).sum();
-                let sgn = if dot < 0.0 { -1.0 } else { 1.0 };
-                let fq = f.min(1.0);
-                for m in 0..4 {
-                    q[m] = (1.0 - fq) * a[6 + m] + fq * sgn * c[6 + m];
-                }
-                let qn = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-                q.iter_mut().for_each(|x| *x /= qn);
+                let pa = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+                let pc = [c[0] - b[0], c[1] - b[1], c[2] - b[2]];
+                let qa = [a[6], a[7], a[8], a[9]];
+                let qc = [c[6], c[7], c[8], c[9]];
+                // The same interpolation the planner reads the forecast with.
+                let (p, q) = interpolate_pose(&pa, &qa, &pc, &qc, f);
                 let kk = (j + 1).min(h);
                 let att = self.buf.att_radius(i, kk).min(2.0);
+                // An attitude error θ moves a surface point by at most θ times its distance from
+                // the rotation centre: the shape's lever (0 for a centred sphere).
                 tr.steps[k - 1] = ForecastStep {
-                    p: [
-                        a[0] + f * (c[0] - a[0]) - b[0],
-                        a[1] + f * (c[1] - a[1]) - b[1],
-                        a[2] + f * (c[2] - a[2]) - b[2],
-                    ],
+                    p,
                     q,
-                    sigma_m: self.buf.pos_radius(i, kk) + att * radius,
+                    sigma_m: self.buf.pos_radius(i, kk) + att * lever,
+                    sigma_pos_m: self.buf.pos_radius(i, kk),
                 };
             }
         }

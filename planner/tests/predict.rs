@@ -39,7 +39,7 @@ fn one_bad_item_does_not_lose_the_good_ones() {
     sc.debris.latency_jitter_s = 0.0; // every record of a sample in one frame
     sc.debris.dropout = 0.0;
     let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
-    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     let mut frame = <DebrisObservation as Zeroed>::zeroed();
     for _ in 0..40 {
         side.step(1e-3);
@@ -79,7 +79,7 @@ fn one_bad_item_does_not_lose_the_good_ones() {
 fn forecasts_are_on_a_common_grid_in_the_base_frame_and_match_the_truth() {
     let sc = scenario("sparse-slow", "dual-data");
     let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
-    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     feed(&mut side, &mut core, 3000);
     let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
     let n = core.forecast_into(&mut msg);
@@ -122,7 +122,7 @@ fn forecasts_are_on_a_common_grid_in_the_base_frame_and_match_the_truth() {
 fn observe_and_forecast_allocate_nothing() {
     let sc = scenario("dense", "koopman-online");
     let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
-    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     feed(&mut side, &mut core, 500);
     let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
     core.forecast_into(&mut msg);

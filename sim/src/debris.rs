@@ -10,10 +10,11 @@
 //! Allocation-free after construction: [`DebrisSide::tick`] and
 //! [`DebrisSide::drain_observations`] (tested with the counting allocator).
 
+use dkrrt_collision::{descriptor_of, proximity, ArmPoser, ContactPair, Obstacle, PosedCapsule};
 use dkrrt_config::Scenario;
-use dkrrt_debris::{proximity, ContactPair, DebrisWorld, LinkCapsule, ObsBuffer, Sensor};
-use dkrrt_model::{ArmModel, JVec, NJ};
-use dkrrt_msg::{DebrisObs, DebrisObservation, DEBRIS_HAS_VELOCITY, MAX_DEBRIS};
+use dkrrt_debris::{DebrisWorld, ObsBuffer, Sensor};
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::{DebrisObs, DebrisObservation, DebrisShape, DEBRIS_HAS_VELOCITY, MAX_DEBRIS};
 use serde::Serialize;
 
 /// The first contact of a run.
@@ -67,15 +68,20 @@ pub struct DebrisSide {
     obs: ObsBuffer,
     base: [f64; 3],
     margin: f64,
-    capsules: [LinkCapsule; NJ],
+    poser: ArmPoser,
+    capsules: [PosedCapsule; NJ],
+    obstacles: Vec<Obstacle>,
+    /// The contract shape descriptor per world index (what a perception driver would report).
+    shapes: Vec<(u32, DebrisShape)>,
     contacts: [ContactPair; 8],
     /// Running figures.
     pub stats: DebrisStats,
 }
 
 impl DebrisSide {
-    /// Builds the scenario's debris world and sensor (allocates; not in the loop).
-    pub fn new(sc: &Scenario) -> Result<DebrisSide, String> {
+    /// Builds the scenario's debris world and sensor (allocates; not in the loop). `model` is
+    /// the arm whose links are checked.
+    pub fn new(sc: &Scenario, model: &ArmModel) -> Result<DebrisSide, String> {
         let scene = sc.load_debris_scene().map_err(|e| e.to_string())?;
         let world =
             DebrisWorld::new(&scene).map_err(|e| format!("debris.scene {:?}: {e}", sc.debris.scene))?;
@@ -92,7 +98,10 @@ impl DebrisSide {
             obs,
             base: sc.debris.base_lvlh,
             margin: sc.debris.contact_margin_m,
-            capsules: [LinkCapsule { a: [0.0; 3], b: [0.0; 3], radius: 0.0 }; NJ],
+            poser: ArmPoser::with_offset(model.clone(), sc.debris.base_lvlh),
+            capsules: [PosedCapsule::default(); NJ],
+            obstacles: Vec::with_capacity(MAX_DEBRIS),
+            shapes: Vec::with_capacity(MAX_DEBRIS),
             contacts: [ContactPair::default(); 8],
             stats: DebrisStats { objects, observations: first, ..DebrisStats::default() },
         })
@@ -104,44 +113,59 @@ impl DebrisSide {
     }
 
     /// The arm's link capsules at joint positions `q`, in LVLH.
-    pub fn arm_capsules(&mut self, model: &ArmModel, q: &JVec) -> &[LinkCapsule; NJ] {
-        let poses = model.link_poses(q);
-        for (c, lc) in self.capsules.iter_mut().zip(model.collision_capsules()) {
-            let (a, b) = lc.world_segment(&poses[lc.link]);
-            let o = &self.base;
-            *c = LinkCapsule {
-                a: [a.x + o[0], a.y + o[1], a.z + o[2]],
-                b: [b.x + o[0], b.y + o[1], b.z + o[2]],
-                radius: lc.radius,
-            };
-        }
+    pub fn arm_capsules(&mut self, q: &[f64; NJ]) -> &[PosedCapsule; NJ] {
+        self.poser.pose(q, &mut self.capsules);
         &self.capsules
     }
 
-    /// Checks the arm at `q` against the debris at plant time `t` (the world's current time).
-    /// Returns true if a pair is within the contact margin.
-    pub fn check(&mut self, model: &ArmModel, q: &JVec) -> bool {
-        self.arm_capsules(model, q);
+    /// Checks the arm at `q` against the true debris shapes at plant time `t` (the world's
+    /// current time), with the same code as the planner's predicted checks. Returns true if a
+    /// pair is within the contact margin. A non-finite `q` is not a state: it is not checked.
+    pub fn check(&mut self, q: &[f64; NJ]) -> bool {
+        if !q.iter().all(|x| x.is_finite()) {
+            return false;
+        }
+        self.poser.pose(q, &mut self.capsules);
+        self.obstacles.clear();
+        for d in self.world.debris() {
+            let p = [d.state.p.x, d.state.p.y, d.state.p.z];
+            let qq = d.state.q.quaternion();
+            let o = Obstacle::from_shape(
+                d.id,
+                d.props.shape.clone(),
+                d.props.bounding_radius,
+                &p,
+                &[qq.w, qq.i, qq.j, qq.k],
+            );
+            if self.obstacles.len() < self.obstacles.capacity() {
+                self.obstacles.push(o);
+            }
+        }
         let t = self.world.time();
-        let pr = proximity(self.world.debris(), &self.capsules, self.margin, &mut self.contacts);
+        let pr = proximity(&self.capsules, &self.obstacles, self.margin, &mut self.contacts);
         let s = &mut self.stats;
         s.ticks_checked += 1;
         if pr.min_distance.is_finite() && s.min_distance_m.is_none_or(|m| pr.min_distance < m) {
             s.min_distance_m = Some(pr.min_distance);
             s.min_distance_t_s = t;
-            s.min_distance_link = pr.capsule;
-            s.min_distance_debris = pr.debris_id;
+            s.min_distance_link = pr.link;
+            s.min_distance_debris = pr.id;
         }
         if pr.any_contact() {
             s.contact_ticks += 1;
             if s.first_contact.is_none() {
                 let c = self.contacts[0];
                 s.first_contact =
-                    Some(Contact { t_s: t, link: c.capsule, debris_id: c.debris_id, distance_m: c.distance });
+                    Some(Contact { t_s: t, link: c.link, debris_id: c.id, distance_m: c.distance });
             }
             return true;
         }
         false
+    }
+
+    /// The contract descriptor of object `id`'s true shape and its bounding radius.
+    pub fn shape_of(&mut self, id: u32) -> (DebrisShape, f64) {
+        shape_entry(&self.world, &mut self.shapes, id)
     }
 
     /// Advances the world by `dt` and lets the sensor sample (the observations become
@@ -168,8 +192,7 @@ impl DebrisSide {
             frame.header.flags = 0;
             frame.count = chunk.len() as u32;
             for (item, o) in frame.items.iter_mut().zip(chunk) {
-                let radius =
-                    self.world.index_of(o.id).map_or(0.0, |i| self.world.debris()[i].props.bounding_radius);
+                let (shape, radius) = shape_entry(&self.world, &mut self.shapes, o.id);
                 *item = DebrisObs {
                     id: o.id,
                     flags: if o.has_rates { DEBRIS_HAS_VELOCITY } else { 0 },
@@ -179,6 +202,7 @@ impl DebrisSide {
                     v: o.v,
                     w: o.w,
                     bounding_radius: radius,
+                    shape,
                 };
             }
             send(frame)?;
@@ -188,4 +212,19 @@ impl DebrisSide {
         self.stats.observation_frames += sent as u64;
         Ok(sent)
     }
+}
+
+/// Descriptor (cached per id: the hull's box is computed once) and bounding radius of `id`.
+fn shape_entry(world: &DebrisWorld, cache: &mut Vec<(u32, DebrisShape)>, id: u32) -> (DebrisShape, f64) {
+    let Some(i) = world.index_of(id) else { return (DebrisShape::default(), 0.0) };
+    let d = &world.debris()[i];
+    let r = d.props.bounding_radius;
+    if let Some(e) = cache.iter().find(|e| e.0 == id) {
+        return (e.1, r);
+    }
+    let desc = descriptor_of(d.props.shape.as_ref());
+    if cache.len() < cache.capacity() {
+        cache.push((id, desc));
+    }
+    (desc, r)
 }

@@ -16,8 +16,9 @@ use dkrrt_rt::hist::{LatencyHist, Percentiles};
 use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
 use dkrrt_rt::signals;
 
-use crate::debris::{DebrisSide, DebrisStats};
-use crate::plant::{Plant, PlantConfig, PlantStats};
+use crate::core::SimCore;
+use crate::debris::DebrisStats;
+use crate::plant::PlantStats;
 
 /// What the sim reports at exit (written as JSON to `--stats`).
 #[derive(Debug, Clone, serde::Serialize)]
@@ -74,20 +75,14 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
     let mut traj_seen = <Trajectory as Zeroed>::zeroed();
     let mut hb = HeartbeatTx::new(&bus, Source::Sim, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
 
-    let mut debris =
-        if sc.has_debris() { Some(DebrisSide::new(sc).map_err(|e| e.to_string())?) } else { None };
-    let mut obs_pub = match debris {
+    let mut core = SimCore::new(sc, model)?;
+    let mut obs_pub = match core.debris {
         Some(_) => Some(bus.publisher::<DebrisObservation>(Source::Sim).map_err(|e| e.to_string())?),
         None => None,
     };
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
     let mut obs_gate = gate.predictor && obs_pub.is_some() && sc.run.mode == Mode::Lockstep;
-    let dt_s = 1.0 / sc.run.control_hz;
 
-    let mut plant = Plant::new(model, PlantConfig::from_scenario(sc), &sc.sim.initial_q);
-    if let Some(d) = debris.as_mut() {
-        d.check(plant.model(), &plant.true_state().0);
-    }
     let period_ns = sc.period_ns();
     let total = sc.ticks();
     let mut msg = <RobotState as Zeroed>::zeroed();
@@ -106,7 +101,7 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         let stop = signals::stop_requested();
         stopped_by_signal |= stop;
         let last = k >= total || stop;
-        let m = plant.measured();
+        let m = core.plant.measured();
         msg.header.stamp_ns = k * period_ns;
         msg.header.flags =
             if m.brake_engaged { FLAG_BRAKE_ENGAGED } else { 0 } | if last { FLAG_END_OF_RUN } else { 0 };
@@ -117,6 +112,7 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         if last {
             break;
         }
+        let plant = &mut core.plant;
         let mut offer = |c: &TorqueCommand| plant.offer_command(c.state_seq, &c.tau);
         match sc.run.mode {
             Mode::Realtime => {
@@ -167,20 +163,21 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
                 }
             }
         }
-        plant.step();
         k += 1;
-        if let (Some(d), Some(p)) = (debris.as_mut(), obs_pub.as_mut()) {
-            // The world advances with the plant; contacts are checked on the true arm state.
-            d.step(dt_s);
-            if d.check(plant.model(), &plant.true_state().0) && d.stats.contact_ticks == 1 {
-                let c = d.stats.first_contact.unwrap();
-                eprintln!(
-                    "sim: COLLISION: link {} hit debris {} at t = {:.3} s (distance {:.4} m)",
-                    c.link, c.debris_id, c.t_s, c.distance_m
-                );
-            }
-            d.drain_observations(&mut obs_msg, |m| p.publish(m).map(|_| ())).map_err(|e| e.to_string())?;
+        let rep = core
+            .step(&mut obs_msg, |m| match obs_pub.as_mut() {
+                Some(p) => p.publish(m).map(|_| ()),
+                None => Ok(()),
+            })
+            .map_err(|e| e.to_string())?;
+        if rep.first_contact {
+            let c = core.debris.as_ref().and_then(|d| d.stats.first_contact).unwrap();
+            eprintln!(
+                "sim: COLLISION: link {} hit debris {} at t = {:.3} s (distance {:.4} m)",
+                c.link, c.debris_id, c.t_s, c.distance_m
+            );
         }
+        let plant = &mut core.plant;
         let state = if plant.brake_engaged() { ProcessState::SafeHold } else { ProcessState::Running };
         hb.maybe_send(
             mono_ns(),
@@ -194,6 +191,7 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         )
         .map_err(|e| e.to_string())?;
     }
+    let plant = &core.plant;
     let _ = hb.maybe_send(
         mono_ns(),
         true,
@@ -215,7 +213,7 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         commands_rejected: cmd_sub.rejected,
         final_q: q.into(),
         final_qd: qd.into(),
-        debris: debris.map(|d| d.stats),
+        debris: core.debris.as_ref().map(|d| d.stats),
         stopped_by_signal,
         rt,
     };

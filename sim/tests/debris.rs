@@ -43,8 +43,8 @@ fn a_debris_object_on_a_link_is_a_collision_and_a_distant_one_is_not() {
     let (mid, _) = link_mid(&sc, &model, 2);
     let path = sphere_scene("hit", mid, 0.2);
     sc.debris.scene = path.display().to_string();
-    let mut side = DebrisSide::new(&sc).unwrap();
-    assert!(side.check(&model, &q0(&sc)), "sphere on link 2 must touch it");
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    assert!(side.check(&q0(&sc).into()), "sphere on link 2 must touch it");
     let c = side.stats.first_contact.expect("first contact recorded");
     assert_eq!(c.debris_id, 42);
     assert_eq!(c.distance_m, 0.0);
@@ -55,15 +55,15 @@ fn a_debris_object_on_a_link_is_a_collision_and_a_distant_one_is_not() {
     // reported closest distance is below the centre distance and positive.
     let far = [mid[0] + 10.0, mid[1], mid[2]];
     sc.debris.scene = sphere_scene("miss", far, 0.2).display().to_string();
-    let mut side = DebrisSide::new(&sc).unwrap();
-    assert!(!side.check(&model, &q0(&sc)));
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    assert!(!side.check(&q0(&sc).into()));
     let d = side.stats.min_distance_m.unwrap();
     assert!(d > 5.0 && d < 10.0, "min distance {d}");
     assert!(side.stats.first_contact.is_none());
     // A margin larger than the gap turns it into a contact.
     sc.debris.contact_margin_m = d + 0.01;
-    let mut side = DebrisSide::new(&sc).unwrap();
-    assert!(side.check(&model, &q0(&sc)));
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    assert!(side.check(&q0(&sc).into()));
     let _ = std::fs::remove_dir_all(path.parent().unwrap());
 }
 
@@ -77,7 +77,7 @@ fn observations_are_base_frame_poses_on_the_plant_clock() {
     sc.debris.dropout = 0.0;
     sc.debris.latency_s = 0.03;
     sc.debris.latency_jitter_s = 0.0;
-    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     let n = side.world().debris().len();
     let lim = ContractLimits::symmetric(1.0, 1.0, 1.0);
     let mut frame = <DebrisObservation as Zeroed>::zeroed();
@@ -137,7 +137,7 @@ fn tick_check_and_drain_allocate_nothing() {
     let model = ArmModel::default_arm();
     let mut sc = Scenario::default_scenario();
     sc.debris.scene = "dense".into();
-    let mut side = DebrisSide::new(&sc).unwrap();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     let mut frame = <DebrisObservation as Zeroed>::zeroed();
     let q = q0(&sc);
     side.step(1e-3); // first-use paths
@@ -145,7 +145,7 @@ fn tick_check_and_drain_allocate_nothing() {
     let (_, s) = dkrrt_rt::alloc_count::count(|| {
         for _ in 0..2000 {
             side.step(1e-3);
-            side.check(&model, &q);
+            side.check(&q.into());
             sent += side.drain_observations::<()>(&mut frame, |_| Ok(())).unwrap();
         }
     });

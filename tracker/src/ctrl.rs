@@ -28,6 +28,10 @@ pub struct TrackerConfig {
     pub limits: Limits<NJ>,
     /// A new trajectory must start within this distance of the current reference, rad.
     pub max_start_jump: f64,
+    /// A spliced trajectory (one whose `start_ns` lies ahead) must continue the reference it
+    /// replaces at `start_ns` within these tolerances: position (rad), velocity (rad/s),
+    /// acceleration (rad/s²).
+    pub splice_tol: [f64; 3],
 }
 
 impl TrackerConfig {
@@ -40,9 +44,14 @@ impl TrackerConfig {
             predict: sc.tracker.predict,
             limits: Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max },
             max_start_jump: 0.05,
+            splice_tol: SPLICE_TOL,
         }
     }
 }
+
+/// Default splice tolerances (p rad, v rad/s, a rad/s²): a planner splices at the exact state of
+/// the current reference, so only floating-point differences are allowed.
+pub const SPLICE_TOL: [f64; 3] = [1e-6, 1e-6, 1e-5];
 
 /// Why the controller changed mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -54,6 +63,10 @@ pub enum Reason {
     StaleState,
     InvalidTrajectory,
     BrakeComplete,
+    /// A queued trajectory took over at its `start_ns`.
+    Splice,
+    /// A queued trajectory did not continue the reference at its `start_ns` (not followed).
+    SpliceRejected,
 }
 
 /// A mode switch, reported by the tick that made it.
@@ -117,6 +130,9 @@ pub struct CtrlStats {
     pub safe_hold_entries: u64,
     pub trajectories_accepted: u64,
     pub trajectories_rejected: u64,
+    /// Trajectories queued for a later `start_ns`, and how many of them took over.
+    pub splices_queued: u64,
+    pub splices_taken: u64,
     pub track: ErrorStats,
 }
 
@@ -133,6 +149,8 @@ pub struct Tracker {
     last_state: Option<(u64, u64, JVec, JVec)>, // (seq, stamp_ns, q, qd)
     /// `traj` arrived before the first state: its start is checked on the tick after it.
     traj_pending: bool,
+    /// A trajectory whose `start_ns` lies ahead: it takes over then (splice).
+    queued: Box<Trajectory>,
     ticks_since_state: u32,
     prev_tau: JVec,
     tick: u64,
@@ -151,6 +169,7 @@ impl Tracker {
             hold_q: [0.0; NJ],
             last_state: None,
             traj_pending: false,
+            queued: Box::new(<Trajectory as Zeroed>::zeroed()),
             ticks_since_state: 0,
             prev_tau: JVec::zeros(),
             tick: 0,
@@ -248,8 +267,18 @@ impl Tracker {
     /// tracking, the controller brakes (an invalid trajectory is not followed).
     /// Before the first state, where the arm is is not known: the trajectory is
     /// kept and its start checked against the first state (on the tick after it).
+    ///
+    /// A trajectory whose `start_ns` lies ahead of the current tick is queued instead (a newer
+    /// queued one replaces it): it takes over at `start_ns` if it continues the reference there
+    /// in position, velocity and acceleration (within `splice_tol`; at rest, the position may
+    /// differ by up to `max_start_jump`), else it is rejected (and a tracked motion brakes).
     pub fn set_trajectory(&mut self, t: &Trajectory) -> Option<ModeEvent> {
-        if t.traj_id == self.traj.traj_id && self.traj.traj_id != 0 {
+        if t.traj_id != 0 && (t.traj_id == self.traj.traj_id || t.traj_id == self.queued.traj_id) {
+            return None;
+        }
+        if t.traj_id != 0 && self.last_state.is_some() && t.start_ns > self.plant_ns() {
+            *self.queued = *t;
+            self.stats.splices_queued += 1;
             return None;
         }
         if t.traj_id != 0 && self.last_state.is_none() {
@@ -277,6 +306,49 @@ impl Tracker {
         };
         let jump = (0..NJ).map(|i| (start[i] - cur[i]).abs()).fold(0.0, f64::max);
         jump <= self.cfg.max_start_jump
+    }
+
+    /// Splices the queued trajectory in at its `start_ns`, if it continues the reference there.
+    fn take_queued(&mut self) -> Option<ModeEvent> {
+        let start_ns = self.queued.start_ns;
+        let ns = self.plant_ns();
+        let (p, v, a) = match self.mode {
+            ControllerMode::Idle => match self.last_state {
+                Some((_, _, q, _)) => (q.into(), [0.0; NJ], [0.0; NJ]),
+                None => return None,
+            },
+            _ => self.reference(start_ns),
+        };
+        let s = self.queued.sample(0.0);
+        let moving = matches!(self.mode, ControllerMode::Track | ControllerMode::Brake);
+        let tol = self.cfg.splice_tol;
+        let p_tol = if moving { tol[0] } else { self.cfg.max_start_jump };
+        let ok = (0..NJ).all(|i| {
+            (s.p[i] - p[i]).abs() <= p_tol
+                && (s.v[i] - v[i]).abs() <= tol[1]
+                && (s.a[i] - a[i]).abs() <= tol[2]
+        });
+        // A brake in progress is a safe hold: only a plan from rest (after it) replaces it.
+        if ok && self.mode != ControllerMode::Brake {
+            *self.traj = *self.queued;
+            self.queued.traj_id = 0;
+            self.stats.trajectories_accepted += 1;
+            self.stats.splices_taken += 1;
+            Some(self.switch(ControllerMode::Track, Reason::Splice, ns))
+        } else {
+            self.queued.traj_id = 0;
+            self.stats.trajectories_rejected += 1;
+            if self.mode == ControllerMode::Track {
+                Some(self.enter_safe_hold(Reason::SpliceRejected, ns))
+            } else {
+                None
+            }
+        }
+    }
+
+    /// The trajectory waiting for its `start_ns` (id 0: none).
+    pub fn queued_traj_id(&self) -> u64 {
+        self.queued.traj_id
     }
 
     /// Records that a trajectory message failed validation.
@@ -332,6 +404,13 @@ impl Tracker {
                 // Nothing was accepted before it: forget it (as a rejected offer is).
                 self.stats.trajectories_rejected += 1;
                 self.traj.traj_id = 0;
+            }
+        }
+
+        // A queued trajectory takes over at its start.
+        if self.queued.traj_id != 0 && ns >= self.queued.start_ns && !stale {
+            if let Some(e) = self.take_queued() {
+                event = Some(e);
             }
         }
 

@@ -55,7 +55,7 @@ pub struct TrackerReport {
 }
 
 fn log_event(e: &ModeEvent) {
-    let safe = matches!(e.reason, Reason::StaleState | Reason::InvalidTrajectory);
+    let safe = matches!(e.reason, Reason::StaleState | Reason::InvalidTrajectory | Reason::SpliceRejected);
     eprintln!(
         "tracker: {}{:?} -> {:?} ({:?}) at plant t = {:.3} s",
         if safe { "SAFE HOLD: " } else { "" },

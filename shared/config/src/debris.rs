@@ -7,6 +7,9 @@ impl Scenario {
     /// The debris scene of `debris.scene` (a named scene or a scene file); the error names
     /// the field.
     pub fn load_debris_scene(&self) -> Result<Scene, ConfigError> {
+        if let Some(s) = &self.scene_override {
+            return Ok(s.clone());
+        }
         let r = match self.debris_scene_path() {
             Some(p) => Scene::from_file(&p),
             None => Scene::named(&self.debris.scene),

@@ -60,9 +60,75 @@ pub struct Scenario {
     pub debris: DebrisCfg,
     /// The debris predictor process.
     pub predictor: PredictorCfg,
+    /// The trajectory source: `straight` (`dkrrt goto`) or the `dk-rrt` planner.
+    #[serde(default)]
+    pub planner: PlannerCfg,
+    /// A threat episode (generated start, goal and debris aimed at the straight motion)
+    /// replacing `sim.initial_q`, `goal.q` and the debris scene; resolved by the consumer
+    /// (`dkrrt_episodes::resolve`) into the fields below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episode: Option<EpisodeCfg>,
     /// Directory relative paths are resolved against (not in the file).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
+    /// The debris scene of a resolved episode (not in the file: every process regenerates it
+    /// from `[episode]`, deterministically).
+    #[serde(skip)]
+    pub scene_override: Option<dkrrt_debris::Scene>,
+    /// The resolved episode's time limit, s.
+    #[serde(skip)]
+    pub episode_time_limit_s: Option<f64>,
+}
+
+/// `[planner]`: the trajectory source and the replanning loop.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlannerCfg {
+    /// `straight` (a jerk-limited line to the goal, no avoidance) or `dk-rrt`.
+    pub method: String,
+    /// Planning cycles per second.
+    pub rate_hz: f64,
+    /// Compute deadline of a cycle, ms.
+    pub deadline_ms: f64,
+    /// A new plan starts this long after the cycle's state, ms (>= the deadline + transport).
+    pub commit_ms: f64,
+    /// Obstacles are inflated by the forecast's sigma plus this margin, m.
+    pub margin_m: f64,
+    /// Planner iterations per cycle (the work budget; lockstep runs use exactly this).
+    pub iterations: u32,
+    /// Plans are checked this far ahead, s.
+    pub lookahead_s: f64,
+    /// Largest relative arm–debris motion between two checks, m.
+    pub delta_m: f64,
+    pub seed: u64,
+    pub cpu: i32,
+}
+
+impl Default for PlannerCfg {
+    fn default() -> Self {
+        PlannerCfg {
+            method: "straight".into(),
+            rate_hz: 10.0,
+            deadline_ms: 50.0,
+            commit_ms: 60.0,
+            margin_m: 0.05,
+            iterations: 300,
+            lookahead_s: 5.0,
+            delta_m: 0.03,
+            seed: 1,
+            cpu: -1,
+        }
+    }
+}
+
+/// `[episode]`: a generated threat episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EpisodeCfg {
+    /// The named scene the episode builds on.
+    pub scene: String,
+    pub index: u64,
+    pub seed: u64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -170,10 +236,18 @@ pub struct PredictorCfg {
     /// Forecast steps (<= 40) and their spacing, s.
     pub horizon_steps: u32,
     pub dt_s: f64,
-    /// Training runs of the scene simulated at start-up to fit the models (seeded).
+    /// Training runs simulated at start-up to fit the models (seeded).
     pub fit_runs: u32,
+    /// What they simulate: `scene` (the scenario's own scene, perturbed) or `generic` (random
+    /// scenes: nothing of the evaluated episode is seen before it runs).
+    #[serde(default = "scene_fit")]
+    pub fit: String,
     pub fit_seed: u64,
     pub cpu: i32,
+}
+
+fn scene_fit() -> String {
+    "scene".into()
 }
 
 /// Joint limits of the arm the scenario is checked against.
@@ -415,6 +489,47 @@ impl Scenario {
         c.positive("predictor.dt_s", p.dt_s)?;
         if p.fit_runs == 0 || p.fit_runs > 64 {
             return Err(c.fail("predictor.fit_runs", p.fit_runs, "must be 1..=64"));
+        }
+        if p.fit != "scene" && p.fit != "generic" {
+            return Err(c.fail("predictor.fit", format!("{:?}", p.fit), "must be \"scene\" or \"generic\""));
+        }
+        let pl = &self.planner;
+        if pl.method != "straight" && pl.method != "dk-rrt" {
+            return Err(c.fail(
+                "planner.method",
+                format!("{:?}", pl.method),
+                "must be \"straight\" or \"dk-rrt\"",
+            ));
+        }
+        if !(1.0..=100.0).contains(&pl.rate_hz) {
+            return Err(c.fail("planner.rate_hz", pl.rate_hz, "must be within [1, 100] Hz"));
+        }
+        if !(pl.deadline_ms > 0.0 && pl.deadline_ms <= 1000.0 / pl.rate_hz) {
+            return Err(c.fail(
+                "planner.deadline_ms",
+                pl.deadline_ms,
+                "must be > 0 and at most the cycle period",
+            ));
+        }
+        if !(pl.commit_ms >= pl.deadline_ms && pl.commit_ms <= 1000.0) {
+            return Err(c.fail("planner.commit_ms", pl.commit_ms, "must be within [deadline_ms, 1000]"));
+        }
+        if !(0.0..=1.0).contains(&pl.margin_m) {
+            return Err(c.fail("planner.margin_m", pl.margin_m, "must be within [0, 1] m"));
+        }
+        if pl.iterations == 0 || pl.iterations > 100_000 {
+            return Err(c.fail("planner.iterations", pl.iterations, "must be 1..=100000"));
+        }
+        if !(pl.lookahead_s > 0.0 && pl.lookahead_s <= 60.0) {
+            return Err(c.fail("planner.lookahead_s", pl.lookahead_s, "must be within (0, 60] s"));
+        }
+        if !(pl.delta_m >= 0.001 && pl.delta_m <= 0.5) {
+            return Err(c.fail("planner.delta_m", pl.delta_m, "must be within [0.001, 0.5] m"));
+        }
+        if let Some(e) = &self.episode {
+            if !dkrrt_debris::SCENE_NAMES.contains(&e.scene.as_str()) {
+                return Err(c.fail("episode.scene", format!("{:?}", e.scene), "must be a named scene"));
+            }
         }
         Ok(())
     }

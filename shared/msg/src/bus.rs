@@ -70,6 +70,7 @@ topic!(Heartbeat, "dkrrt/health");
 // slack at 30–100 Hz before a late reader loses one (counted in `Sub::lost`).
 topic!(DebrisObservation, "dkrrt/debris_observation", OBSERVATION_BUFFER);
 topic!(DebrisForecast, "dkrrt/debris_forecast");
+topic!(PlanStatus, "dkrrt/plan_status");
 
 /// QoS shared by all services (open_or_create needs the same values everywhere).
 pub const MAX_PUBLISHERS: usize = 8;

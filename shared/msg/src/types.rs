@@ -228,6 +228,93 @@ pub struct Heartbeat {
 /// [`DebrisObs`] flag: `v` and `w` hold measured velocities.
 pub const DEBRIS_HAS_VELOCITY: u32 = 1;
 
+/// [`DebrisShape::kind`] values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ShapeKind {
+    /// Nothing known but the bounding radius: the shape is the bounding sphere.
+    Unknown = 0,
+    /// Sphere: `dims[0]` = radius.
+    Sphere = 1,
+    /// Capsule (rod) along the body z axis: `dims[0]` = half length of the axis, `dims[1]` = radius.
+    Capsule = 2,
+    /// Box (also panels, and convex pieces as their body-frame box): `dims` = half extents.
+    Box = 3,
+}
+
+impl ShapeKind {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Some(match v {
+            0 => ShapeKind::Unknown,
+            1 => ShapeKind::Sphere,
+            2 => ShapeKind::Capsule,
+            3 => ShapeKind::Box,
+            _ => return None,
+        })
+    }
+}
+
+/// A debris object's shape as a perception driver would estimate it, in the body frame of the
+/// pose it travels with: a primitive centred at `offset` (body axes), its axes along the body's.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct DebrisShape {
+    /// A [`ShapeKind`] value.
+    pub kind: u32,
+    pub _reserved: u32,
+    /// Dimensions per kind (see [`ShapeKind`]), m.
+    pub dims: [f64; 3],
+    /// Centre of the primitive in the body frame, m.
+    pub offset: [f64; 3],
+}
+
+impl DebrisShape {
+    pub const fn sphere(radius: f64) -> Self {
+        DebrisShape {
+            kind: ShapeKind::Sphere as u32,
+            _reserved: 0,
+            dims: [radius, 0.0, 0.0],
+            offset: [0.0; 3],
+        }
+    }
+    pub const fn capsule(half_length: f64, radius: f64) -> Self {
+        DebrisShape {
+            kind: ShapeKind::Capsule as u32,
+            _reserved: 0,
+            dims: [half_length, radius, 0.0],
+            offset: [0.0; 3],
+        }
+    }
+    pub const fn cuboid(half_extents: [f64; 3], offset: [f64; 3]) -> Self {
+        DebrisShape { kind: ShapeKind::Box as u32, _reserved: 0, dims: half_extents, offset }
+    }
+    /// The largest distance from the body origin of a surface point that moves under a rotation
+    /// about the origin, m: an attitude error θ moves the surface by at most θ times it (a
+    /// centred sphere does not move). `Unknown`: the bounding radius.
+    pub fn rotation_lever(&self, bounding_radius: f64) -> f64 {
+        let o = (self.offset[0].powi(2) + self.offset[1].powi(2) + self.offset[2].powi(2)).sqrt();
+        let d = &self.dims;
+        match ShapeKind::from_u32(self.kind) {
+            Some(ShapeKind::Sphere) => o,
+            Some(ShapeKind::Capsule) => o + d[0],
+            Some(ShapeKind::Box) => o + (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+            _ => bounding_radius,
+        }
+    }
+
+    /// Radius of a sphere about the body origin enclosing the shape, m (0 for `Unknown`).
+    pub fn bounding_radius(&self) -> f64 {
+        let o = (self.offset[0].powi(2) + self.offset[1].powi(2) + self.offset[2].powi(2)).sqrt();
+        let d = &self.dims;
+        o + match ShapeKind::from_u32(self.kind) {
+            Some(ShapeKind::Sphere) => d[0],
+            Some(ShapeKind::Capsule) => d[0] + d[1],
+            Some(ShapeKind::Box) => (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+            _ => 0.0,
+        }
+    }
+}
+
 /// One observed debris object.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
@@ -246,12 +333,14 @@ pub struct DebrisObs {
     pub w: [f64; 3],
     /// Radius of a sphere around the body origin enclosing its shape, m.
     pub bounding_radius: f64,
+    /// The estimated shape (kind `Unknown`: only the bounding sphere is known).
+    pub shape: DebrisShape,
 }
 
 /// Debris observations of one sensor frame (30–100 Hz).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("dkrrt::DebrisObservation/1")]
+#[type_name("dkrrt::DebrisObservation/2")]
 pub struct DebrisObservation {
     pub header: Header,
     pub count: u32,
@@ -266,8 +355,12 @@ pub struct ForecastStep {
     pub p: [f64; 3],
     /// (w, x, y, z), unit norm.
     pub q: [f64; 4],
-    /// Position error bound at this horizon, m (inflate the shape by it).
+    /// Error bound of the shape's surface at this horizon, m: the position bound plus what the
+    /// attitude bound moves the surface by (inflate the shape by it).
     pub sigma_m: f64,
+    /// The position (centre) error bound alone, m: the bounding sphere inflated by it is also
+    /// a valid bound, tighter when the attitude is poorly known.
+    pub sigma_pos_m: f64,
 }
 
 /// The forecast of one debris object.
@@ -277,6 +370,8 @@ pub struct ForecastTrack {
     pub id: u32,
     pub _reserved: u32,
     pub bounding_radius: f64,
+    /// The track's shape (from the observations), in the frame of the forecast poses.
+    pub shape: DebrisShape,
     pub steps: [ForecastStep; FORECAST_STEPS],
 }
 
@@ -284,7 +379,7 @@ pub struct ForecastTrack {
 /// prediction for plant time `t0_ns + (k + 1) · dt_s`.
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("dkrrt::DebrisForecast/1")]
+#[type_name("dkrrt::DebrisForecast/2")]
 pub struct DebrisForecast {
     pub header: Header,
     pub count: u32,
@@ -293,6 +388,57 @@ pub struct DebrisForecast {
     pub dt_s: f64,
     pub t0_ns: u64,
     pub tracks: [ForecastTrack; MAX_DEBRIS],
+}
+
+/// [`PlanStatus::fallback`] values: what the replanning loop did when it found no new valid plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Fallback {
+    /// A valid plan is active (new or kept because it stays valid).
+    None = 0,
+    /// No new plan was found; the current one is still valid and kept.
+    Keep = 1,
+    /// The best escape (a safe haven short of the goal) was published.
+    Escape = 2,
+    /// Nothing valid: a brake to rest was published (or the arm is held at rest).
+    Brake = 3,
+}
+
+impl Fallback {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        Some(match v {
+            0 => Fallback::None,
+            1 => Fallback::Keep,
+            2 => Fallback::Escape,
+            3 => Fallback::Brake,
+            _ => return None,
+        })
+    }
+}
+
+/// The replanning loop's state, published once per planning cycle (10–20 Hz).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::PlanStatus/1")]
+pub struct PlanStatus {
+    pub header: Header,
+    pub cycle: u64,
+    /// Compute time of this cycle, µs.
+    pub plan_time_us: u64,
+    /// Planner iterations this cycle.
+    pub iterations: u32,
+    /// A [`Fallback`] value.
+    pub fallback: u32,
+    /// Trajectories published so far.
+    pub replans: u64,
+    /// Id of the plan the tracker should be following (0: none).
+    pub active_traj_id: u64,
+    /// Smallest predicted clearance of the active plan over the look-ahead, m.
+    pub min_predicted_clearance_m: f64,
+    /// 1 once the arm is at the goal.
+    pub goal_reached: u32,
+    /// 1 if this cycle's compute time exceeded the deadline.
+    pub deadline_missed: u32,
 }
 
 /// All-zero value of a payload (every payload is plain numbers, so all-zero
@@ -311,6 +457,7 @@ impl Zeroed for Goal {}
 impl Zeroed for Heartbeat {}
 impl Zeroed for DebrisObservation {}
 impl Zeroed for DebrisForecast {}
+impl Zeroed for PlanStatus {}
 
 // Compile-time layout checks: a failing assert here means the wire layout changed.
 const _: () = {
@@ -322,11 +469,13 @@ const _: () = {
     assert!(size_of::<Trajectory>() == 32 + 24 + 4 * NJ + 40 * MAX_SEGMENTS * NJ);
     assert!(size_of::<Goal>() == 32 + 8 + 8 * NJ);
     assert!(size_of::<Heartbeat>() == 32 + 8 + 32);
-    assert!(size_of::<DebrisObs>() == 128);
-    assert!(size_of::<DebrisObservation>() == 32 + 8 + 128 * MAX_DEBRIS);
-    assert!(size_of::<ForecastStep>() == 64);
-    assert!(size_of::<ForecastTrack>() == 16 + 64 * FORECAST_STEPS);
-    assert!(size_of::<DebrisForecast>() == 32 + 24 + (16 + 64 * FORECAST_STEPS) * MAX_DEBRIS);
+    assert!(size_of::<DebrisShape>() == 56);
+    assert!(size_of::<DebrisObs>() == 128 + 56);
+    assert!(size_of::<DebrisObservation>() == 32 + 8 + 184 * MAX_DEBRIS);
+    assert!(size_of::<ForecastStep>() == 72);
+    assert!(size_of::<ForecastTrack>() == 16 + 56 + 72 * FORECAST_STEPS);
+    assert!(size_of::<DebrisForecast>() == 32 + 24 + (72 + 72 * FORECAST_STEPS) * MAX_DEBRIS);
+    assert!(size_of::<PlanStatus>() == 32 + 8 * 5 + 4 * 4);
     assert!(align_of::<RobotState>() == 8 && align_of::<TorqueCommand>() == 8);
     assert!(align_of::<Trajectory>() == 8 && align_of::<DebrisForecast>() == 8);
 };

@@ -234,6 +234,45 @@ fn debris_pose(
     unit_quat(field_q, index, q)
 }
 
+impl DebrisShape {
+    /// Checks the descriptor: a known kind, finite dimensions in (0, 50] m for the ones the kind
+    /// uses, a finite offset within 50 m.
+    pub fn validate(&self, field: &'static str, index: usize) -> Result<(), ValidationError> {
+        let used = match ShapeKind::from_u32(self.kind) {
+            None => return Err(ValidationError::BadEnum { field, value: self.kind }),
+            Some(ShapeKind::Unknown) => 0,
+            Some(ShapeKind::Sphere) => 1,
+            Some(ShapeKind::Capsule) => 2,
+            Some(ShapeKind::Box) => 3,
+        };
+        finite(field, &self.dims)?;
+        finite(field, &self.offset)?;
+        for (k, &d) in self.dims[..used].iter().enumerate() {
+            if !(d > 0.0 && d <= 50.0) {
+                return Err(ValidationError::OutOfRange {
+                    field,
+                    index: index * 3 + k,
+                    value: d,
+                    min: 0.0,
+                    max: 50.0,
+                });
+            }
+        }
+        for (k, &o) in self.offset.iter().enumerate() {
+            if o.abs() > 50.0 {
+                return Err(ValidationError::OutOfRange {
+                    field,
+                    index: index * 3 + k,
+                    value: o,
+                    min: -50.0,
+                    max: 50.0,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 impl DebrisObservation {
     /// Frame-level check only (`count`). Consumers that must not lose the good items of a
     /// frame with one bad item check the items one by one with [`DebrisObs::validate_item`].
@@ -253,6 +292,7 @@ impl DebrisObs {
         let i = index;
         debris_pose(lim, i, &o.p, &o.q, "items.p", "items.q")?;
         scalar("items.bounding_radius", o.bounding_radius, 0.0, 100.0)?;
+        o.shape.validate("items.shape", i)?;
         if o.flags & DEBRIS_HAS_VELOCITY != 0 {
             finite("items.v", &o.v)?;
             finite("items.w", &o.w)?;
@@ -292,10 +332,24 @@ impl Validate for DebrisForecast {
         scalar("dt_s", self.dt_s, 1e-6, 10.0)?;
         for (i, t) in self.tracks[..n].iter().enumerate() {
             scalar("tracks.bounding_radius", t.bounding_radius, 0.0, 100.0)?;
+            t.shape.validate("tracks.shape", i)?;
             for st in &t.steps[..s] {
                 debris_pose(lim, i, &st.p, &st.q, "tracks.steps.p", "tracks.steps.q")?;
                 scalar("tracks.steps.sigma_m", st.sigma_m, 0.0, lim.debris_range_m)?;
+                scalar("tracks.steps.sigma_pos_m", st.sigma_pos_m, 0.0, st.sigma_m)?;
             }
+        }
+        Ok(())
+    }
+}
+
+impl Validate for PlanStatus {
+    fn validate(&self, _lim: &ContractLimits) -> Result<(), ValidationError> {
+        if Fallback::from_u32(self.fallback).is_none() {
+            return Err(ValidationError::BadEnum { field: "fallback", value: self.fallback });
+        }
+        if self.min_predicted_clearance_m.is_nan() {
+            return Err(ValidationError::NonFinite { field: "min_predicted_clearance_m", index: 0 });
         }
         Ok(())
     }

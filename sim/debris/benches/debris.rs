@@ -1,4 +1,4 @@
-//! Benchmarks: world step, capsule proximity query, sensor poll.
+//! Benchmarks: world step, sensor poll (arm–debris distances: the dkrrt-collision bench).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dkrrt_debris::*;
@@ -17,16 +17,6 @@ fn bench(c: &mut Criterion) {
         Scene::random(7, 32, &RandomSceneParams { min_range: 0.5, max_range: 4.0, ..Default::default() });
     scene.perturbation.accel_noise_sigma = 1e-4;
     let w = DebrisWorld::new(&scene).unwrap();
-    let arm: Vec<LinkCapsule> = (0..7)
-        .map(|i| {
-            let t = i as f64 * 0.4;
-            LinkCapsule { a: [t, 0.2 * t, 0.1], b: [t + 0.4, 0.2 * (t + 0.4), 0.1], radius: 0.07 }
-        })
-        .collect();
-    let mut contacts = [ContactPair::default(); 32];
-    g.bench_function("proximity_7_capsules_32obj", |b| {
-        b.iter(|| black_box(proximity(w.debris(), &arm, 0.0, &mut contacts)))
-    });
     let mut sensor =
         Sensor::new(SensorConfig { rate_hz: 100.0, report_rates: true, ..Default::default() }, 1).unwrap();
     let mut buf = ObsBuffer::new();

@@ -7,7 +7,6 @@
 //! * [`scene`]: TOML scenes, four embedded named scenes, seeded random scenes.
 //! * [`world`]: [`DebrisWorld`] with fixed capacity [`MAX_DEBRIS`], allocation-free RK4 stepping,
 //!   unmodelled perturbations and scheduled events (impulses, fragment splits).
-//! * [`collide`]: allocation-free capsule (arm link) vs debris distance/contact query.
 //! * [`sensor`]: noisy / dropping / delayed observations into a fixed-capacity buffer.
 //!
 //! See `README.md` for the model, orbit and frame conventions.
@@ -16,7 +15,6 @@
 #![allow(clippy::large_enum_variant)]
 
 pub mod body;
-pub mod collide;
 pub mod orbit;
 pub mod scene;
 pub mod sensor;
@@ -26,8 +24,9 @@ pub mod world;
 pub const MAX_DEBRIS: usize = 32;
 
 pub use body::{BodyProps, RigidState, ShapeSpec};
-pub use collide::{proximity, ContactPair, LinkCapsule, Proximity};
 pub use orbit::{ChiefState, OrbitConfig, RefOrbit};
-pub use scene::{DebrisSpec, EventSpec, RandomSceneParams, Scene, SceneError, SCENE_NAMES};
+pub use scene::{
+    DebrisSpec, EventSpec, PerturbationConfig, RandomSceneParams, Scene, SceneError, SCENE_NAMES,
+};
 pub use sensor::{ObsBuffer, Observation, Sensor, SensorConfig, SensorError};
 pub use world::{Debris, DebrisWorld, FiredEvent, FiredKind};

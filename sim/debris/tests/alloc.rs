@@ -1,8 +1,6 @@
-//! The hot paths (world step incl. events and noise, proximity query, sensor poll) never allocate.
+//! The hot paths (world step incl. events and noise, sensor poll) never allocate.
 
-use dkrrt_debris::{
-    proximity, ContactPair, DebrisWorld, LinkCapsule, ObsBuffer, Scene, Sensor, SensorConfig,
-};
+use dkrrt_debris::{DebrisWorld, ObsBuffer, Scene, Sensor, SensorConfig};
 use dkrrt_rt::alloc_count::{count, CountingAlloc};
 
 #[global_allocator]
@@ -16,11 +14,6 @@ fn hot_paths_do_not_allocate() {
     let mut world = DebrisWorld::new(&scene).unwrap();
     let mut sensor = Sensor::new(SensorConfig { report_rates: true, ..Default::default() }, 1).unwrap();
     let mut buf = ObsBuffer::new();
-    let arm = [
-        LinkCapsule { a: [0.0, 0.0, 0.0], b: [0.5, 1.0, 0.2], radius: 0.08 },
-        LinkCapsule { a: [0.5, 1.0, 0.2], b: [1.5, 2.5, 0.3], radius: 0.06 },
-    ];
-    let mut contacts = [ContactPair::default(); 16];
     let n0 = world.debris().len();
     let (_, stats) = count(|| {
         // 20 s: crosses the impulse (10 s) and the split (15 s) events.
@@ -28,7 +21,6 @@ fn hot_paths_do_not_allocate() {
             world.step(0.02);
             buf.clear();
             sensor.poll(world.time(), world.debris(), &mut buf);
-            std::hint::black_box(proximity(world.debris(), &arm, 0.01, &mut contacts));
         }
     });
     assert_eq!(world.events_fired(), 2);

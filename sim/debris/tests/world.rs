@@ -1,9 +1,8 @@
-//! Scenes, events, collision queries and the sensor model.
+//! Scenes, events and the sensor model (arm–debris distances: the dkrrt-collision tests).
 
-use dkrrt_debris::collide::debris_pose;
 use dkrrt_debris::{
-    proximity, ContactPair, DebrisWorld, FiredKind, LinkCapsule, ObsBuffer, RandomSceneParams, Scene,
-    SceneError, Sensor, SensorConfig, SCENE_NAMES,
+    DebrisWorld, FiredKind, ObsBuffer, RandomSceneParams, Scene, SceneError, Sensor, SensorConfig,
+    SCENE_NAMES,
 };
 use nalgebra::Vector3;
 
@@ -115,54 +114,6 @@ fn impulse_and_split_events_fire_and_conserve_momentum() {
     assert!((com1 - com0).norm() < 1e-6, "com {com0} -> {com1}");
     assert!((f.state.v - p.state.v - Vector3::new(0.1, 0.15, -0.05)).norm() < 1e-6);
     assert!((f.state.p - p.state.p).norm() > 0.85);
-}
-
-#[test]
-fn capsule_distance_matches_analytic_and_reports_contacts() {
-    let s = Scene::named("sparse-slow").unwrap();
-    let w = DebrisWorld::new(&s).unwrap();
-    // debris 0 is a sphere r = 0.25 at (3, 4, 0.5); debris 5 a sphere r = 0.1 at (0, 8, 0).
-    let sph = &w.debris()[0];
-    let c = sph.state.p;
-    let cap = LinkCapsule { a: [c.x - 1.0, c.y, c.z + 1.0], b: [c.x + 1.0, c.y, c.z + 1.0], radius: 0.2 };
-    let mut contacts = [ContactPair::default(); 8];
-    let r = proximity(&w.debris()[..1], &[cap], 0.0, &mut contacts);
-    assert!((r.min_distance - (1.0 - 0.25 - 0.2)).abs() < 1e-9, "{}", r.min_distance);
-    assert!(!r.any_contact());
-    // A capsule through the sphere centre: contact.
-    let through = LinkCapsule { a: [c.x - 1.0, c.y, c.z], b: [c.x + 1.0, c.y, c.z], radius: 0.05 };
-    let r = proximity(w.debris(), &[cap, through], 0.0, &mut contacts);
-    assert!(r.any_contact() && r.min_distance == 0.0 && r.debris_id == 0 && r.capsule == 1);
-    assert_eq!(contacts[0], ContactPair { capsule: 1, debris_id: 0, distance: 0.0 });
-    // Broad phase never changes the answer: compare with brute-force parry queries.
-    let arm = [
-        LinkCapsule { a: [0.0, 0.0, 0.0], b: [0.5, 1.0, 0.2], radius: 0.08 },
-        LinkCapsule { a: [0.5, 1.0, 0.2], b: [1.5, 2.5, 0.3], radius: 0.06 },
-        LinkCapsule { a: [1.5, 2.5, 0.3], b: [2.0, 3.0, 1.0], radius: 0.05 },
-    ];
-    for name in SCENE_NAMES {
-        let w = DebrisWorld::new(&Scene::named(name).unwrap()).unwrap();
-        let r = proximity(w.debris(), &arm, 0.0, &mut contacts);
-        let mut best = f64::INFINITY;
-        for c in &arm {
-            let a = parry3d_f64::math::Vector::new(c.a[0], c.a[1], c.a[2]);
-            let b = parry3d_f64::math::Vector::new(c.b[0], c.b[1], c.b[2]);
-            let shape = parry3d_f64::shape::Capsule::new(a, b, c.radius);
-            for d in w.debris() {
-                let dist = parry3d_f64::query::distance(
-                    &debris_pose(d),
-                    d.props.shape.as_ref(),
-                    &parry3d_f64::math::Pose::IDENTITY,
-                    &shape,
-                )
-                .unwrap()
-                .distance;
-                best = best.min(dist);
-            }
-        }
-        assert!((r.min_distance - best).abs() < 1e-12, "{name}: {} vs {best}", r.min_distance);
-        assert!(best > 0.0 && best.is_finite());
-    }
 }
 
 #[test]

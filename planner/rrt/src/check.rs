@@ -1,0 +1,168 @@
+//! Checking configurations, motions and rests against the world in time.
+//!
+//! **Why sampled checks are safe here.** Between two check times `Δt` apart, any point of the
+//! arm moves at most `V_arm·Δt`, with `V_arm = Σ_i v_max,i · lever_i` (the joint speed limits
+//! of the motion and each joint's lever arm, [`ArmPoser::lever_arms`]), and any point of an
+//! obstacle's inflated surface moves at most `V_obs·Δt` (its forecast's largest
+//! `|v| + ω·R + dσ/dt`, [`WorldInTime::max_speed`]). The separation is 1-Lipschitz in that
+//! relative motion, so at any instant between two samples it is at least the smaller sampled
+//! separation minus `(V_arm + V_obs)·Δt / 2`. The checker picks `Δt = δ / (V_arm + V_obs)` and
+//! requires every sample to clear the obstacles inflated by `δ/2` more: nothing, however thin
+//! or fast, slips between two samples. At rest `V_arm = 0`, so waits are sampled more sparsely.
+
+use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::MAX_DEBRIS;
+
+use crate::world::WorldInTime;
+
+/// Result of checking a stretch of time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Check {
+    pub ok: bool,
+    /// Smallest sampled clearance (beyond the inflation), capped at the checker's cap, m.
+    pub min_clearance: f64,
+    /// First failing time (if not ok), s.
+    pub t_fail: f64,
+    /// Samples checked.
+    pub samples: u32,
+}
+
+impl Check {
+    fn pass(cap: f64) -> Check {
+        Check { ok: true, min_clearance: cap, t_fail: f64::NAN, samples: 0 }
+    }
+}
+
+/// Configuration / motion checker (preallocated; allocation-free).
+#[derive(Debug, Clone)]
+pub struct Checker {
+    poser: ArmPoser,
+    caps: [PosedCapsule; NJ],
+    obs: Vec<Obstacle>,
+    arm_speed: f64,
+    delta: f64,
+    q_min: [f64; NJ],
+    q_max: [f64; NJ],
+    /// Clearances above this are not measured exactly (reported as the cap), m.
+    pub cap: f64,
+    /// Configurations checked so far.
+    pub configs_checked: u64,
+}
+
+impl Checker {
+    /// `v_max`: the joint speed limits the checked motions respect; `delta_m`: the largest
+    /// relative motion between two samples (see the module docs).
+    pub fn new(model: ArmModel, v_max: &[f64; NJ], delta_m: f64) -> Checker {
+        let l = model.limits();
+        let (q_min, q_max) = (l.q_min.into(), l.q_max.into());
+        let poser = ArmPoser::new(model);
+        let arm_speed = poser.max_point_speed(v_max);
+        Checker {
+            poser,
+            caps: [PosedCapsule::default(); NJ],
+            obs: Vec::with_capacity(MAX_DEBRIS),
+            arm_speed,
+            delta: delta_m.max(1e-4),
+            q_min,
+            q_max,
+            cap: 1.0,
+            configs_checked: 0,
+        }
+    }
+
+    pub fn poser(&self) -> &ArmPoser {
+        &self.poser
+    }
+
+    /// Upper bound on the speed of any arm point, m/s.
+    pub fn arm_speed(&self) -> f64 {
+        self.arm_speed
+    }
+
+    /// The δ of the module docs, m.
+    pub fn delta(&self) -> f64 {
+        self.delta
+    }
+
+    /// The sample spacing for a motion (`moving`) or a rest, s.
+    pub fn spacing(&self, world: &WorldInTime, moving: bool) -> f64 {
+        let v = world.max_speed() + if moving { self.arm_speed } else { 0.0 };
+        if v <= 1e-9 {
+            0.5
+        } else {
+            (self.delta / v).min(0.5)
+        }
+    }
+
+    fn in_limits(&self, q: &[f64; NJ]) -> bool {
+        (0..NJ).all(|i| q[i].is_finite() && q[i] >= self.q_min[i] - 1e-9 && q[i] <= self.q_max[i] + 1e-9)
+    }
+
+    /// Clearance of configuration `q` at time `t` against the world inflated by `extra` more
+    /// (negative: in collision; returned early below `stop_below`).
+    pub fn clearance_at(
+        &mut self,
+        world: &WorldInTime,
+        q: &[f64; NJ],
+        t: f64,
+        extra: f64,
+        stop_below: f64,
+    ) -> f64 {
+        self.configs_checked += 1;
+        if !self.in_limits(q) {
+            return -1.0;
+        }
+        self.poser.pose(q, &mut self.caps);
+        world.obstacles_at(t, extra, &mut self.obs);
+        clearance(&self.caps, &self.obs, stop_below, self.cap)
+    }
+
+    /// Checks the motion `at(t)` over `[t0, t1]` (times past `t_end` are not checked: beyond
+    /// the look-ahead nothing is known). `moving = false` for a rest (`at` constant).
+    pub fn check(
+        &mut self,
+        world: &WorldInTime,
+        t0: f64,
+        t1: f64,
+        t_end: f64,
+        moving: bool,
+        mut at: impl FnMut(f64) -> [f64; NJ],
+    ) -> Check {
+        let mut out = Check::pass(self.cap);
+        let t1c = t1.min(t_end);
+        if t1c < t0 {
+            return out;
+        }
+        let v = world.max_speed() + if moving { self.arm_speed } else { 0.0 };
+        let dt_min = self.spacing(world, moving);
+        let half = 0.5 * self.delta;
+        let mut t = t0;
+        loop {
+            let c = if moving || out.samples == 0 {
+                let q = at(t);
+                self.clearance_at(world, &q, t, half, 0.0)
+            } else {
+                // At rest the arm's pose is already computed.
+                self.configs_checked += 1;
+                world.obstacles_at(t, half, &mut self.obs);
+                clearance(&self.caps, &self.obs, 0.0, self.cap)
+            };
+            out.samples += 1;
+            out.min_clearance = out.min_clearance.min(c);
+            if c < 0.0 {
+                out.ok = false;
+                out.t_fail = t;
+                return out;
+            }
+            if t >= t1c {
+                break;
+            }
+            // Conservative advancement: with clearance c (beyond the δ/2 inflation) nothing can
+            // close the gap faster than v, so the next δ/2-margin sample may wait c / v longer.
+            let step = if v > 1e-9 { dt_min.max(c / v + dt_min) } else { dt_min };
+            t = (t + step).min(t1c);
+        }
+        out
+    }
+}

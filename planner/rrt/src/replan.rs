@@ -1,0 +1,397 @@
+//! The replanning loop as a core: one [`Replanner::step`] per planning cycle, called the same
+//! way by the `dkrrt planner` process and by the in-process lockstep.
+//!
+//! Each cycle:
+//! 1. the newest forecast becomes the world in time;
+//! 2. the active plan is checked from now to the look-ahead's end; it is kept while it stays
+//!    valid (and reaches the goal);
+//! 3. otherwise (or when the goal changed, or the active plan is only an escape) the planner
+//!    plans from the **exact state (p, v, a) of the active plan at the commit time**
+//!    `now + commit_s` (≥ the deadline + transport), so the tracker splices the new plan in at
+//!    its `start_ns` without a jump; with no active plan, from rest where the arm is;
+//! 4. the plan, as the message the tracker will follow, is checked once more before it is
+//!    published; a plan that fails is never published;
+//! 5. no valid plan: keep the active one if it is still valid from the commit time, else the
+//!    best escape (a safe haven), else a brake to rest from the commit state. Each is counted.
+
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::{ControllerMode, DebrisForecast, Fallback, PlanStatus, Trajectory, Zeroed};
+use dkrrt_otg::{KinState, Limits, Options};
+use dkrrt_rt::hist::{LatencyHist, Percentiles};
+use serde::Serialize;
+
+use crate::build::Builder;
+use crate::rrt::{PlanStats, Planner, PlannerConfig, Reach, Request};
+use crate::world::WorldInTime;
+
+/// Replanning settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReplanConfig {
+    /// Cycle period, s.
+    pub cycle_s: f64,
+    /// Compute deadline per cycle, s (counted when missed).
+    pub deadline_s: f64,
+    /// A new plan starts this long after the cycle's "now", s (≥ deadline + transport).
+    pub commit_s: f64,
+    /// Obstacles are inflated by σ + this margin, m.
+    pub margin_m: f64,
+    /// Planner iterations per cycle (the work budget lockstep runs use).
+    pub iterations: u32,
+    /// With debris expected, wait this long (plant time) for a first forecast before moving.
+    pub forecast_wait_s: f64,
+    /// Goal tolerance (every joint), rad.
+    pub goal_tol_rad: f64,
+}
+
+impl Default for ReplanConfig {
+    fn default() -> Self {
+        ReplanConfig {
+            cycle_s: 0.1,
+            deadline_s: 0.05,
+            commit_s: 0.06,
+            margin_m: 0.05,
+            iterations: 300,
+            forecast_wait_s: 2.0,
+            goal_tol_rad: 0.01,
+        }
+    }
+}
+
+/// What the tracker is doing (from its commands, or the in-process tracker).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackerView {
+    pub mode: ControllerMode,
+    /// Id of the trajectory it tracks (0: none).
+    pub traj_id: u64,
+}
+
+/// Fallback counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Fallbacks {
+    pub keep: u64,
+    pub escape: u64,
+    pub brake: u64,
+}
+
+/// Running figures of the loop.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ReplanStats {
+    pub cycles: u64,
+    /// Trajectories published (first plan included).
+    pub replans: u64,
+    pub plans_rejected_by_final_check: u64,
+    pub deadline_misses: u64,
+    pub fallbacks: Fallbacks,
+    /// Smallest predicted clearance of the active plan seen over the run, m.
+    pub min_predicted_clearance_m: Option<f64>,
+    /// Compute time of the cycles that planned, and of the first plan, ms.
+    pub first_plan_ms: Option<f64>,
+    pub planner_iterations: u64,
+    /// Plant time the goal was first reached, s.
+    pub goal_reached_s: Option<f64>,
+}
+
+/// What one cycle decided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// `out` holds a new trajectory to publish.
+    pub publish: bool,
+    pub status: PlanStatus,
+}
+
+/// The replanning core.
+pub struct Replanner {
+    pub cfg: ReplanConfig,
+    pub planner: Planner,
+    pub world: WorldInTime,
+    current: Box<Trajectory>,
+    current_reach: Option<Reach>,
+    goal: Option<[f64; NJ]>,
+    have_forecast: bool,
+    has_debris: bool,
+    next_id: u64,
+    plan_hist: LatencyHist,
+    pub stats: ReplanStats,
+    pub last_plan: PlanStats,
+    status: PlanStatus,
+    /// Print one line per cycle to stderr (`DKRRT_PLAN_DEBUG` set at construction).
+    pub debug: bool,
+}
+
+impl Replanner {
+    /// `has_debris`: forecasts are expected (wait for one before the first motion).
+    pub fn new(
+        model: ArmModel,
+        limits: Limits<NJ>,
+        pcfg: PlannerConfig,
+        cfg: ReplanConfig,
+        has_debris: bool,
+    ) -> Self {
+        Replanner {
+            planner: Planner::new(model, limits, pcfg),
+            world: WorldInTime::new(cfg.margin_m),
+            current: Box::new(<Trajectory as Zeroed>::zeroed()),
+            current_reach: None,
+            goal: None,
+            have_forecast: false,
+            has_debris,
+            next_id: 1,
+            plan_hist: LatencyHist::new(),
+            stats: ReplanStats::default(),
+            last_plan: PlanStats::default(),
+            status: <PlanStatus as Zeroed>::zeroed(),
+            debug: std::env::var_os("DKRRT_PLAN_DEBUG").is_some(),
+            cfg,
+        }
+    }
+
+    /// Plan compute times (cycles that ran the planner), ms.
+    pub fn plan_ms(&self) -> Percentiles {
+        let p = self.plan_hist.percentiles_us();
+        Percentiles {
+            p50: p.p50 / 1e3,
+            p99: p.p99 / 1e3,
+            p999: p.p999 / 1e3,
+            max: p.max / 1e3,
+            mean: p.mean / 1e3,
+            count: p.count,
+        }
+    }
+
+    /// The active plan (id 0: none).
+    pub fn current(&self) -> &Trajectory {
+        &self.current
+    }
+
+    /// One planning cycle at plant time `now_ns`. `forecast`: the newest forecast, if a new
+    /// one arrived (`None` keeps the last). `clock()` reads a monotonic clock in ns (for the
+    /// compute time and the deadline; the lockstep passes a real clock too, the budget is
+    /// `cfg.iterations` either way). Writes a new trajectory into `out` when `publish`.
+    pub fn step(
+        &mut self,
+        now_ns: u64,
+        q_meas: &[f64; NJ],
+        tracker: TrackerView,
+        forecast: Option<&DebrisForecast>,
+        goal: &[f64; NJ],
+        clock: &mut dyn FnMut() -> u64,
+        out: &mut Trajectory,
+    ) -> Decision {
+        let c_start = clock();
+        self.stats.cycles += 1;
+        if let Some(f) = forecast {
+            self.world.load_forecast(f);
+            self.have_forecast = true;
+        }
+        let t_now = now_ns as f64 * 1e-9;
+        let goal_changed = self.goal.is_none_or(|g| g != *goal);
+        self.goal = Some(*goal);
+        let at_goal = (0..NJ).all(|i| (q_meas[i] - goal[i]).abs() <= self.cfg.goal_tol_rad);
+        if at_goal && self.stats.goal_reached_s.is_none() {
+            self.stats.goal_reached_s = Some(t_now);
+        }
+        let mut st = <PlanStatus as Zeroed>::zeroed();
+        st.cycle = self.stats.cycles;
+        st.goal_reached = self.stats.goal_reached_s.is_some() as u32;
+        st.active_traj_id = self.current.traj_id;
+        st.min_predicted_clearance_m = f64::INFINITY;
+        let mut publish = false;
+        let waiting = self.has_debris && !self.have_forecast && t_now < self.cfg.forecast_wait_s;
+        let braking = tracker.mode == ControllerMode::Brake;
+        if !waiting && !braking {
+            publish = self.cycle(t_now, q_meas, tracker, goal_changed, clock, c_start, &mut st, out);
+        }
+        let dt = clock().saturating_sub(c_start);
+        st.plan_time_us = dt / 1000;
+        if dt as f64 * 1e-9 > self.cfg.deadline_s {
+            self.stats.deadline_misses += 1;
+            st.deadline_missed = 1;
+        }
+        st.replans = self.stats.replans;
+        st.header.stamp_ns = now_ns;
+        if st.min_predicted_clearance_m.is_finite() {
+            let m = &mut self.stats.min_predicted_clearance_m;
+            *m = Some(m.map_or(st.min_predicted_clearance_m, |x| x.min(st.min_predicted_clearance_m)));
+        } else {
+            st.min_predicted_clearance_m = self.planner.checker.cap;
+        }
+        self.status = st;
+        if self.debug {
+            eprintln!(
+                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} first={:?} clear={:.3} {:.1} ms",
+                self.world.len(),
+                tracker.mode,
+                self.current.traj_id,
+                st.fallback,
+                st.iterations,
+                self.last_plan.nodes,
+                self.last_plan.first_solution_iter,
+                st.min_predicted_clearance_m,
+                dt as f64 * 1e-6
+            );
+        }
+        if self.debug && self.stats.cycles % 20 == 3 {
+            for dt in [0.0, 1.0, 3.0, 6.0, 9.0] {
+                let t = t_now + dt;
+                let c = self.planner.checker.clearance_at(&self.world, q_meas, t, 0.0, f64::NEG_INFINITY);
+                eprintln!("  rest clearance at +{dt}: {c:.3}");
+            }
+            for i in 0..self.world.len() {
+                let (p, _, s, _, sph) = self.world.pose_at(i, t_now + 6.0);
+                let (p0, _, s0, _, _) = self.world.pose_at(i, t_now);
+                eprintln!(
+                    "  track {} now {:?} σ {:.3} | +6 s {:?} σ {:.3} sphere {}",
+                    self.world.id(i),
+                    p0.map(|x| (x * 100.0).round() / 100.0),
+                    s0,
+                    p.map(|x| (x * 100.0).round() / 100.0),
+                    s,
+                    sph
+                );
+            }
+        }
+        Decision { publish, status: st }
+    }
+
+    /// The last cycle's status.
+    pub fn status(&self) -> &PlanStatus {
+        &self.status
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn cycle(
+        &mut self,
+        t_now: f64,
+        q_meas: &[f64; NJ],
+        tracker: TrackerView,
+        goal_changed: bool,
+        clock: &mut dyn FnMut() -> u64,
+        c_start: u64,
+        st: &mut PlanStatus,
+        out: &mut Trajectory,
+    ) -> bool {
+        let t_end = t_now + self.planner.cfg.lookahead_s;
+        let cur_id = self.current.traj_id;
+        let following = cur_id != 0 && tracker.traj_id == cur_id;
+        let cur_done = cur_id != 0 && self.current.time_of((t_now * 1e9) as u64) >= self.current.duration_s;
+        // Is the active plan still valid from now on?
+        let cur_valid = if cur_id != 0 && (following || cur_done || tracker.mode == ControllerMode::Track) {
+            let c = self.check_traj(t_now, t_end);
+            st.min_predicted_clearance_m = c.1;
+            c.0
+        } else {
+            false
+        };
+        let reaches_goal = self.current_reach == Some(Reach::Goal);
+        if cur_valid && reaches_goal && !goal_changed {
+            return false;
+        }
+        // The start of a new plan.
+        let t_c = t_now + self.cfg.commit_s;
+        let c_ns = (t_c * 1e9).round() as u64;
+        let start = if following && !cur_done {
+            let s = self.current.sample(self.current.time_of(c_ns));
+            KinState { p: s.p, v: s.v, a: s.a }
+        } else if cur_done && tracker.mode == ControllerMode::Hold {
+            KinState::rest(self.current.sample(self.current.duration_s).p)
+        } else if tracker.mode == ControllerMode::Track {
+            // Tracking something that is not our active plan (it has not taken over yet).
+            return false;
+        } else {
+            KinState::rest(*q_meas)
+        };
+        let req = Request { start, t0: t_c, goal: *goal_for(self.goal.as_ref()) };
+        let deadline = c_start + (self.cfg.deadline_s * 1e9) as u64;
+        let id = self.next_id;
+        self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
+        let plan = self.planner.plan(&req, &self.world, self.cfg.iterations, || clock() < deadline, id, out);
+        self.last_plan = self.planner.stats;
+        self.stats.planner_iterations += self.planner.stats.iterations as u64;
+        st.iterations = self.planner.stats.iterations;
+        let took = clock().saturating_sub(c_start);
+        self.plan_hist.record_ns(took);
+        if self.stats.first_plan_ms.is_none() && plan.is_some() {
+            self.stats.first_plan_ms = Some(took as f64 * 1e-6);
+        }
+        if let Some(p) = plan {
+            // The message the tracker will follow, checked once more before it goes out.
+            let look = self.planner.cfg.lookahead_s;
+            let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_c, t_c + look);
+            let better = !cur_valid || !reaches_goal || goal_changed || p.reach == Reach::Goal;
+            if ok && better && !(cur_valid && p.reach == Reach::Escape) {
+                self.accept(out, p.reach);
+                st.fallback = if p.reach == Reach::Escape {
+                    self.stats.fallbacks.escape += 1;
+                    Fallback::Escape as u32
+                } else {
+                    Fallback::None as u32
+                };
+                st.active_traj_id = id;
+                st.min_predicted_clearance_m = clear;
+                return true;
+            }
+            if !ok {
+                self.stats.plans_rejected_by_final_check += 1;
+            }
+        }
+        if cur_valid {
+            self.stats.fallbacks.keep += 1;
+            st.fallback = Fallback::Keep as u32;
+            return false;
+        }
+        // Brake to rest from the commit state (nothing valid is known).
+        self.stats.fallbacks.brake += 1;
+        st.fallback = Fallback::Brake as u32;
+        let moving = start.v.iter().chain(start.a.iter()).any(|x| x.abs() > 1e-12);
+        if !moving {
+            return false; // already at rest: hold (the tracker holds without a new plan)
+        }
+        let lim = *self.planner.limits();
+        let Ok(br) = dkrrt_otg::Trajectory::calculate_velocity(
+            &start,
+            &[0.0; NJ],
+            &[0.0; NJ],
+            &lim,
+            &Options::default(),
+        ) else {
+            return false;
+        };
+        let mut b = Builder::new(out, id, c_ns);
+        if b.otg(&br).is_err() {
+            return false;
+        }
+        b.finish();
+        self.accept(out, Reach::Escape);
+        st.active_traj_id = id;
+        true
+    }
+
+    fn accept(&mut self, out: &Trajectory, reach: Reach) {
+        *self.current = *out;
+        self.current_reach = Some(reach);
+        self.next_id += 1;
+        self.stats.replans += 1;
+    }
+
+    /// The active plan checked over [t0, t1]: (valid, min clearance).
+    fn check_traj(&mut self, t0: f64, t1: f64) -> (bool, f64) {
+        check_message(&mut self.planner, &self.world, &self.current, t0, t1)
+    }
+}
+
+fn goal_for(g: Option<&[f64; NJ]>) -> &[f64; NJ] {
+    g.unwrap_or(&[0.0; NJ])
+}
+
+/// A message trajectory checked against the world over [t0, t1] (the final rest included).
+pub fn check_message(
+    planner: &mut Planner,
+    world: &WorldInTime,
+    tr: &Trajectory,
+    t0: f64,
+    t1: f64,
+) -> (bool, f64) {
+    let start = tr.start_ns as f64 * 1e-9;
+    let c = planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p);
+    (c.ok, c.min_clearance)
+}

@@ -1,0 +1,489 @@
+//! The anytime space-time planner.
+//!
+//! States are (q, t). The tree grows forward in time from the start state at the commit time
+//! (which may be moving); every other node is a configuration the arm reaches **at rest** at a
+//! time `t`. An edge is "wait `w` at the parent, then a time-synchronized, jerk-limited
+//! rest-to-rest motion (dkrrt-otg) to the child", so the planned timing *is* the executed
+//! timing: the message the tracker follows is these very pieces. Waits are what make the
+//! search space-time (ST-RRT*'s conditional time sampling): a wait of 0 s half the time, else
+//! uniform up to `max_wait_s`. The goal time is not fixed: any arrival whose rest at the goal
+//! stays clear until the look-ahead's end is a solution; the earliest arrival wins.
+//!
+//! * First solution fast (RRT-Connect's greedy connect): every new node, and the start with a
+//!   ladder of waits, tries to connect straight to the goal.
+//! * Anytime: after the first solution the search goes on for `improve_iters` iterations (or
+//!   the budget), keeping the earliest arrival; the best path is then shortcut (each of its
+//!   nodes tries to reach the goal directly, with the same ladder of waits).
+//! * Sampling: goal-biased; otherwise uniform in the box spanning start and goal widened by
+//!   `sample_box_rad` (informed), or in the whole joint range with probability 0.1.
+//! * No solution: the best *escape* is the reached configuration whose rest stays clear until
+//!   the look-ahead's end with the largest clearance (a safe haven to wait in).
+//!
+//! Preallocated: the tree has a fixed capacity; a planning call allocates nothing.
+
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::Trajectory;
+use dkrrt_otg::{KinState, Limits, Options, Sync};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+use crate::build::{Builder, TooManySegments};
+use crate::check::{Check, Checker};
+use crate::world::WorldInTime;
+
+/// Planner settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannerConfig {
+    /// Tree capacity (nodes).
+    pub max_nodes: usize,
+    /// Probability of sampling the goal.
+    pub goal_bias: f64,
+    /// Longest edge (max-norm over joints), rad.
+    pub step_rad: f64,
+    /// Probability that an edge starts with a wait, and the longest wait, s.
+    pub wait_prob: f64,
+    pub max_wait_s: f64,
+    /// The informed sampling box: start–goal box widened by this, rad.
+    pub sample_box_rad: f64,
+    /// Largest relative arm–obstacle motion between two checks, m (see [`crate::check`]).
+    pub delta_m: f64,
+    /// Checks cover [t0, t0 + lookahead_s]; beyond, the replanning loop re-checks later.
+    pub lookahead_s: f64,
+    /// Iterations after the first solution.
+    pub improve_iters: u32,
+    pub seed: u64,
+}
+
+impl Default for PlannerConfig {
+    fn default() -> Self {
+        PlannerConfig {
+            max_nodes: 1500,
+            goal_bias: 0.2,
+            step_rad: 0.4,
+            wait_prob: 0.5,
+            max_wait_s: 3.0,
+            sample_box_rad: 0.8,
+            delta_m: 0.03,
+            lookahead_s: 5.0,
+            improve_iters: 40,
+            seed: 1,
+        }
+    }
+}
+
+/// One planning problem.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Request {
+    /// The arm's state at `t0` (may be moving).
+    pub start: KinState<NJ>,
+    /// Plant time the plan starts at, s.
+    pub t0: f64,
+    pub goal: [f64; NJ],
+}
+
+/// What a plan reaches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reach {
+    /// The goal, at rest, clear until the look-ahead's end.
+    Goal,
+    /// A safe haven short of the goal.
+    Escape,
+}
+
+/// The result of [`Planner::plan`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plan {
+    pub reach: Reach,
+    /// Arrival (at rest) at the plan's last configuration, plant time, s.
+    pub arrival: f64,
+    /// Smallest predicted clearance along the plan (capped at the checker's cap), m.
+    pub min_clearance: f64,
+    /// Waypoints (rest configurations) after the start, and the wait before each leg.
+    pub n_waypoints: usize,
+}
+
+/// Counters of the last [`Planner::plan`] call.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct PlanStats {
+    pub iterations: u32,
+    pub nodes: u32,
+    /// Iteration of the first solution (`None`: none).
+    pub first_solution_iter: Option<u32>,
+    pub edges_checked: u32,
+    pub configs_checked: u64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    q: [f64; NJ],
+    /// Arrival at rest, s.
+    t: f64,
+    parent: u32,
+    /// Wait at the parent before the motion here, s.
+    wait: f64,
+    min_clear: f64,
+}
+
+const WAIT_LADDER: [f64; 9] = [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0];
+const ROOT: u32 = 0;
+
+/// The planner (tree, checker, random stream: all preallocated).
+pub struct Planner {
+    pub cfg: PlannerConfig,
+    pub checker: Checker,
+    limits: Limits<NJ>,
+    q_min: [f64; NJ],
+    q_max: [f64; NJ],
+    nodes: Vec<Node>,
+    root: KinState<NJ>,
+    root_moving: bool,
+    t0: f64,
+    rng: SmallRng,
+    best_goal: Option<(u32, f64, f64, f64)>, // (parent node, wait, arrival, min clearance)
+    path: Vec<u32>,
+    pub stats: PlanStats,
+    pub debug: bool,
+}
+
+impl Planner {
+    pub fn new(model: ArmModel, limits: Limits<NJ>, cfg: PlannerConfig) -> Planner {
+        let l = model.limits();
+        let (q_min, q_max) = (l.q_min.into(), l.q_max.into());
+        Planner {
+            checker: Checker::new(model, &limits.v_max, cfg.delta_m),
+            limits,
+            q_min,
+            q_max,
+            nodes: Vec::with_capacity(cfg.max_nodes.max(2)),
+            root: KinState::rest([0.0; NJ]),
+            root_moving: false,
+            t0: 0.0,
+            rng: SmallRng::seed_from_u64(cfg.seed),
+            best_goal: None,
+            path: Vec::with_capacity(cfg.max_nodes.max(2)),
+            stats: PlanStats::default(),
+            debug: false,
+            cfg,
+        }
+    }
+
+    pub fn limits(&self) -> &Limits<NJ> {
+        &self.limits
+    }
+
+    /// The rest-to-rest (or from the moving root) motion to `q`.
+    fn motion(&self, from: &KinState<NJ>, q: &[f64; NJ]) -> Option<dkrrt_otg::Trajectory<NJ>> {
+        let opts = Options { sync: Sync::Phase, ..Options::default() };
+        dkrrt_otg::Trajectory::calculate(from, &KinState::rest(*q), &self.limits, &opts).ok()
+    }
+
+    fn node_state(&self, i: u32) -> KinState<NJ> {
+        if i == ROOT {
+            self.root
+        } else {
+            KinState::rest(self.nodes[i as usize].q)
+        }
+    }
+
+    fn t_end(&self) -> f64 {
+        self.t0 + self.cfg.lookahead_s
+    }
+
+    /// Checks "wait `w` at node `from`, then move to rest at `q`"; returns (arrival, min clearance).
+    fn edge(&mut self, world: &WorldInTime, from: u32, w: f64, q: &[f64; NJ]) -> Option<(f64, f64)> {
+        let w = if from == ROOT && self.root_moving { 0.0 } else { w };
+        let n = self.nodes[from as usize];
+        let st = self.node_state(from);
+        let tr = self.motion(&st, q)?;
+        self.stats.edges_checked += 1;
+        let t_end = self.t_end();
+        let mut clear = n.min_clear;
+        if w > 0.0 {
+            let c = self.checker.check(world, n.t, n.t + w, t_end, false, |_| n.q);
+            if !c.ok {
+                return None;
+            }
+            clear = clear.min(c.min_clearance);
+        }
+        let ts = n.t + w;
+        let d = tr.duration();
+        let c = self.checker.check(world, ts, ts + d, t_end, true, |t| tr.at(t - ts).p);
+        if !c.ok {
+            if self.debug && from == ROOT {
+                eprintln!(
+                    "    edge from root (wait {w:.2}) fails at t = {:.2} (start {ts:.2}, duration {d:.2})",
+                    c.t_fail
+                );
+            }
+            return None;
+        }
+        Some((ts + d, clear.min(c.min_clearance)))
+    }
+
+    /// The rest at `q` from `t` until the look-ahead's end (nothing to check after it).
+    fn rest_ok(&mut self, world: &WorldInTime, q: &[f64; NJ], t: f64) -> Check {
+        let t_end = self.t_end();
+        self.checker.check(world, t, t_end, t_end, false, |_| *q)
+    }
+
+    fn try_goal(&mut self, world: &WorldInTime, from: u32, goal: &[f64; NJ], waits: &[f64]) -> bool {
+        let mut found = false;
+        for &w in waits {
+            if from == ROOT && self.root_moving && w > 0.0 {
+                break;
+            }
+            let t_leave = self.nodes[from as usize].t + w;
+            if self.best_goal.is_some_and(|b| t_leave >= b.2) {
+                break; // cannot beat the best arrival
+            }
+            if let Some((arr, clear)) = self.edge(world, from, w, goal) {
+                if self.best_goal.is_some_and(|b| arr >= b.2) {
+                    break;
+                }
+                let r = self.rest_ok(world, goal, arr);
+                if self.debug && from == ROOT {
+                    eprintln!("    goal rest from {arr:.2}: ok {} at {:.2}", r.ok, r.t_fail);
+                }
+                if r.ok {
+                    self.best_goal = Some((from, w, arr, clear.min(r.min_clearance)));
+                    found = true;
+                    break;
+                }
+            }
+        }
+        found
+    }
+
+    fn sample(&mut self, goal: &[f64; NJ]) -> [f64; NJ] {
+        if self.rng.random::<f64>() < self.cfg.goal_bias {
+            return *goal;
+        }
+        let wide = self.rng.random::<f64>() < 0.1;
+        let s = self.root.p;
+        std::array::from_fn(|i| {
+            let (lo, hi) = if wide {
+                (self.q_min[i], self.q_max[i])
+            } else {
+                let b = self.cfg.sample_box_rad;
+                ((s[i].min(goal[i]) - b).max(self.q_min[i]), (s[i].max(goal[i]) + b).min(self.q_max[i]))
+            };
+            lo + (hi - lo) * self.rng.random::<f64>()
+        })
+    }
+
+    fn nearest(&self, q: &[f64; NJ]) -> u32 {
+        let mut best = (f64::INFINITY, 0u32);
+        for (i, n) in self.nodes.iter().enumerate() {
+            let d = (0..NJ).map(|j| (q[j] - n.q[j]).abs() / self.limits.v_max[j]).fold(0.0, f64::max);
+            let score = d + 0.25 * (n.t - self.t0);
+            if score < best.0 {
+                best = (score, i as u32);
+            }
+        }
+        best.1
+    }
+
+    /// Plans from `req` for at most `budget` iterations (and while `keep_going()`), writes the
+    /// best plan into `out` (id `traj_id`, starting at `req.t0`) and returns it; `None` when
+    /// neither the goal nor a safe haven was reached (`out` is then untouched).
+    pub fn plan(
+        &mut self,
+        req: &Request,
+        world: &WorldInTime,
+        budget: u32,
+        mut keep_going: impl FnMut() -> bool,
+        traj_id: u64,
+        out: &mut Trajectory,
+    ) -> Option<Plan> {
+        self.stats = PlanStats::default();
+        let c0 = self.checker.configs_checked;
+        self.nodes.clear();
+        self.best_goal = None;
+        self.root = req.start;
+        self.root_moving = req.start.v.iter().chain(req.start.a.iter()).any(|x| x.abs() > 1e-12);
+        self.t0 = req.t0;
+        let goal = req.goal;
+        self.nodes.push(Node {
+            q: req.start.p,
+            t: req.t0,
+            parent: ROOT,
+            wait: 0.0,
+            min_clear: self.checker.cap,
+        });
+        // The start itself must be clear now (else every plan from it is already in collision).
+        let c = self.checker.clearance_at(world, &req.start.p, req.t0, 0.5 * self.checker.delta(), 0.0);
+        if c < 0.0 {
+            self.stats.configs_checked = self.checker.configs_checked - c0;
+            return None;
+        }
+        // A moving start can first brake to rest: the rest-at-start node (waits grow from it).
+        if self.root_moving {
+            if let Some(tr) = dkrrt_otg::Trajectory::calculate_velocity(
+                &req.start,
+                &[0.0; NJ],
+                &[0.0; NJ],
+                &self.limits,
+                &Options::default(),
+            )
+            .ok()
+            .map(|b| b.final_state().p)
+            {
+                if let Some((t, clear)) = self.edge(world, ROOT, 0.0, &tr) {
+                    self.nodes.push(Node { q: tr, t, parent: ROOT, wait: 0.0, min_clear: clear });
+                }
+            }
+        }
+        // First solution fast: the direct motion, then waiting first.
+        for i in 0..self.nodes.len() as u32 {
+            self.try_goal(world, i, &goal, &WAIT_LADDER);
+        }
+        let mut first = self.best_goal.map(|_| 0u32);
+        let mut it = 0u32;
+        while it < budget && keep_going() {
+            if let Some(f) = first {
+                if it >= f + self.cfg.improve_iters {
+                    break;
+                }
+            }
+            it += 1;
+            if self.nodes.len() >= self.nodes.capacity() {
+                break;
+            }
+            let qs = self.sample(&goal);
+            let near = self.nearest(&qs);
+            let qn = self.nodes[near as usize].q;
+            let span = (0..NJ).map(|j| (qs[j] - qn[j]).abs()).fold(0.0, f64::max);
+            let f = if span > self.cfg.step_rad { self.cfg.step_rad / span } else { 1.0 };
+            let q_new: [f64; NJ] = std::array::from_fn(|j| qn[j] + f * (qs[j] - qn[j]));
+            let w = if self.rng.random::<f64>() < self.cfg.wait_prob {
+                self.cfg.max_wait_s * self.rng.random::<f64>()
+            } else {
+                0.0
+            };
+            let Some((t, clear)) = self.edge(world, near, w, &q_new) else { continue };
+            if self.best_goal.is_some_and(|b| t >= b.2) {
+                continue; // arrives after the best solution: useless
+            }
+            let idx = self.nodes.len() as u32;
+            self.nodes.push(Node { q: q_new, t, parent: near, wait: w, min_clear: clear });
+            if self.try_goal(world, idx, &goal, &WAIT_LADDER[..4]) && first.is_none() {
+                first = Some(it);
+            }
+        }
+        self.stats.iterations = it;
+        self.stats.first_solution_iter = first;
+        let plan = if let Some(best) = self.best_goal {
+            self.shortcut(world, &goal, best.0);
+            let (parent, wait, arrival, clear) = self.best_goal.unwrap_or(best);
+            self.write(parent, Some((wait, &goal)), traj_id, out).ok()?;
+            Some(Plan { reach: Reach::Goal, arrival, min_clearance: clear, n_waypoints: self.path.len() })
+        } else {
+            self.escape(world, traj_id, out)
+        };
+        self.stats.nodes = self.nodes.len() as u32;
+        self.stats.configs_checked = self.checker.configs_checked - c0;
+        plan
+    }
+
+    /// Each node of the best path tries to reach the goal directly (earlier arrival wins).
+    fn shortcut(&mut self, world: &WorldInTime, goal: &[f64; NJ], last: u32) {
+        self.path.clear();
+        let mut i = last;
+        loop {
+            self.path.push(i);
+            if i == ROOT {
+                break;
+            }
+            i = self.nodes[i as usize].parent;
+        }
+        // From the start side: the earliest node that connects gives the biggest cut.
+        for k in (0..self.path.len()).rev() {
+            let n = self.path[k];
+            self.try_goal(world, n, goal, &WAIT_LADDER);
+        }
+    }
+
+    /// The best safe haven: a reached node whose rest stays clear to the look-ahead's end.
+    fn escape(&mut self, world: &WorldInTime, traj_id: u64, out: &mut Trajectory) -> Option<Plan> {
+        // Candidates: the most clear-pathed nodes first (bounded work).
+        let mut best: Option<(u32, f64)> = None;
+        let mut tried = 0;
+        let mut order: [(f64, u32); 48] = [(f64::NEG_INFINITY, 0); 48];
+        for (i, n) in self.nodes.iter().enumerate() {
+            let worst = order
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+                .map(|(k, _)| k)
+                .unwrap_or(0);
+            if n.min_clear > order[worst].0 && !(i == 0 && self.root_moving) {
+                order[worst] = (n.min_clear, i as u32);
+            }
+        }
+        order.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for &(score, i) in order.iter() {
+            if score == f64::NEG_INFINITY || tried >= 24 {
+                break;
+            }
+            tried += 1;
+            let n = self.nodes[i as usize];
+            let r = self.rest_ok(world, &n.q, n.t);
+            if r.ok {
+                let s = n.min_clear.min(r.min_clearance);
+                if best.is_none_or(|b| s > b.1) {
+                    best = Some((i, s));
+                }
+            }
+        }
+        let (i, clear) = best?;
+        self.write(i, None, traj_id, out).ok()?;
+        Some(Plan {
+            reach: Reach::Escape,
+            arrival: self.nodes[i as usize].t,
+            min_clearance: clear,
+            n_waypoints: self.path.len(),
+        })
+    }
+
+    /// Writes the path root → … → `last` (→ goal after `wait`) into `out`.
+    fn write(
+        &mut self,
+        last: u32,
+        goal: Option<(f64, &[f64; NJ])>,
+        traj_id: u64,
+        out: &mut Trajectory,
+    ) -> Result<(), TooManySegments> {
+        self.path.clear();
+        let mut i = last;
+        while i != ROOT {
+            self.path.push(i);
+            i = self.nodes[i as usize].parent;
+        }
+        self.path.reverse();
+        let start_ns = (self.t0 * 1e9).round().max(0.0) as u64;
+        let mut b = Builder::new(out, traj_id, start_ns);
+        let mut from = self.root;
+        let mut from_idx = ROOT;
+        let legs = self.path.len();
+        for k in 0..=legs {
+            let (w, q) = if k < legs {
+                let n = self.nodes[self.path[k] as usize];
+                (n.wait, n.q)
+            } else if let Some((w, g)) = goal {
+                (w, *g)
+            } else {
+                break;
+            };
+            let w = if from_idx == ROOT && self.root_moving { 0.0 } else { w };
+            b.rest(&from.p, w)?;
+            if let Some(tr) = self.motion(&from, &q) {
+                b.otg(&tr)?;
+            }
+            from = KinState::rest(q);
+            from_idx = if k < legs { self.path[k] } else { u32::MAX };
+        }
+        b.finish();
+        Ok(())
+    }
+}

@@ -1,0 +1,281 @@
+//! The debris world in time, as the planner sees it: per track a shape and timed poses (from a
+//! [`DebrisForecast`], or from a planning-problem file), any time `t` read as an inflated
+//! obstacle.
+//!
+//! * Between poses: position linear, attitude slerp (`dkrrt_collision::interpolate_pose`, the
+//!   same function the predictor puts its forecasts on the common grid with), σ linear.
+//! * Before the first pose: the motion of the first interval, extended backwards.
+//! * Past the last pose of a **forecast** track (its horizon): the centre keeps the velocity of
+//!   the last interval, the attitude is no longer predicted (the shape becomes its bounding
+//!   sphere), and σ keeps growing at the rate of the last interval (at least σ_last / horizon
+//!   per second). Past the last pose of a **problem** obstacle: the last pose is held, σ = 0.
+//! * Inflation: σ(t) + the configured margin (+ what the checker's sampling can miss, added by
+//!   the checker).
+//!
+//! Every track also carries a bound on how fast any point of its inflated surface moves
+//! (|v| + ω·R + dσ/dt over its intervals, and over the extrapolation), used by the checker to
+//! space its samples. Loading a forecast allocates nothing (fixed capacity).
+
+use dkrrt_collision::{interpolate_pose, quat_angle, Obstacle};
+use dkrrt_msg::{DebrisForecast, DebrisShape, FORECAST_STEPS, MAX_DEBRIS};
+
+/// One timed pose of a track.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TimedPose {
+    /// Plant time, s.
+    pub t: f64,
+    pub p: [f64; 3],
+    /// (w, x, y, z).
+    pub q: [f64; 4],
+    /// Surface uncertainty bound of the shape (position + attitude), m.
+    pub sigma: f64,
+    /// Position uncertainty bound alone (for the bounding sphere), m.
+    pub sigma_pos: f64,
+}
+
+/// What happens after a track's last pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum After {
+    /// Forecast: extrapolate (see the module docs).
+    Extrapolate,
+    /// Problem obstacle: hold the last pose.
+    Hold,
+}
+
+#[derive(Debug, Clone)]
+struct Track {
+    id: u32,
+    shape: DebrisShape,
+    radius: f64,
+    lever: f64,
+    after: After,
+    poses: Vec<TimedPose>,
+    /// Max surface speed (incl. σ growth) over the poses and the extrapolation, m/s.
+    speed: f64,
+    /// σ growth rate after the last pose, m/s.
+    sigma_rate: f64,
+}
+
+/// Why a world could not be built from a problem.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldError {
+    #[error("obstacles: at most {max} (got {got})")]
+    TooMany { got: usize, max: usize },
+    #[error("obstacles[{index}].poses: {reason}")]
+    Poses { index: usize, reason: String },
+}
+
+/// Tracks of the world in time (fixed capacity: [`MAX_DEBRIS`] tracks).
+#[derive(Debug, Clone)]
+pub struct WorldInTime {
+    tracks: Vec<Track>,
+    n: usize,
+    margin: f64,
+    /// Time of the newest forecast (`t0`), s.
+    pub t0: f64,
+    /// End of the forecast horizon (last step), s.
+    pub horizon_end: f64,
+}
+
+impl WorldInTime {
+    /// An empty world; obstacles are inflated by σ + `margin_m`.
+    pub fn new(margin_m: f64) -> Self {
+        let tracks = (0..MAX_DEBRIS)
+            .map(|_| Track {
+                id: 0,
+                shape: DebrisShape::default(),
+                radius: 0.0,
+                lever: 0.0,
+                after: After::Hold,
+                poses: Vec::with_capacity(FORECAST_STEPS + 1),
+                speed: 0.0,
+                sigma_rate: 0.0,
+            })
+            .collect();
+        WorldInTime { tracks, n: 0, margin: margin_m, t0: 0.0, horizon_end: 0.0 }
+    }
+
+    pub fn margin(&self) -> f64 {
+        self.margin
+    }
+
+    pub fn set_margin(&mut self, m: f64) {
+        self.margin = m.max(0.0);
+    }
+
+    /// Number of tracks.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Removes every track.
+    pub fn clear(&mut self) {
+        self.n = 0;
+        self.t0 = 0.0;
+        self.horizon_end = 0.0;
+    }
+
+    /// Replaces the tracks by a (validated) forecast's. Allocation-free.
+    pub fn load_forecast(&mut self, f: &DebrisForecast) {
+        self.n = 0;
+        let steps = (f.steps as usize).min(FORECAST_STEPS);
+        let t0 = f.t0_ns as f64 * 1e-9;
+        self.t0 = t0;
+        self.horizon_end = t0 + steps as f64 * f.dt_s;
+        for tr in &f.tracks[..(f.count as usize).min(MAX_DEBRIS)] {
+            let k = self.n;
+            let t = &mut self.tracks[k];
+            t.id = tr.id;
+            t.shape = tr.shape;
+            t.radius = tr.bounding_radius.max(tr.shape.bounding_radius());
+            t.lever = tr.shape.rotation_lever(t.radius);
+            t.after = After::Extrapolate;
+            t.poses.clear();
+            for (i, st) in tr.steps[..steps].iter().enumerate() {
+                t.poses.push(TimedPose {
+                    t: t0 + (i + 1) as f64 * f.dt_s,
+                    p: st.p,
+                    q: st.q,
+                    sigma: st.sigma_m,
+                    sigma_pos: st.sigma_pos_m.min(st.sigma_m),
+                });
+            }
+            finish(t);
+            self.n += 1;
+        }
+    }
+
+    /// Adds a track (a problem obstacle, or a test's). Allocates for more than
+    /// `FORECAST_STEPS + 1` poses: not for planning cycles.
+    pub fn push_track(
+        &mut self,
+        id: u32,
+        shape: DebrisShape,
+        poses: &[TimedPose],
+        after: After,
+    ) -> Result<(), WorldError> {
+        if self.n >= MAX_DEBRIS {
+            return Err(WorldError::TooMany { got: self.n + 1, max: MAX_DEBRIS });
+        }
+        if poses.is_empty() {
+            return Err(WorldError::Poses { index: self.n, reason: "at least one pose".into() });
+        }
+        if poses.windows(2).any(|w| !(w[1].t > w[0].t)) {
+            return Err(WorldError::Poses { index: self.n, reason: "times must increase".into() });
+        }
+        let t = &mut self.tracks[self.n];
+        t.id = id;
+        t.shape = shape;
+        t.radius = shape.bounding_radius();
+        t.lever = shape.rotation_lever(t.radius);
+        t.after = after;
+        t.poses.clear();
+        t.poses.extend_from_slice(poses);
+        finish(t);
+        self.horizon_end = self.horizon_end.max(poses[poses.len() - 1].t);
+        self.n += 1;
+        Ok(())
+    }
+
+    /// The largest surface speed of any track (incl. σ growth), m/s.
+    pub fn max_speed(&self) -> f64 {
+        self.tracks[..self.n].iter().map(|t| t.speed).fold(0.0, f64::max)
+    }
+
+    /// Writes every track's obstacle at time `t`, inflated by σ(t) + margin + `extra`.
+    pub fn obstacles_at(&self, t: f64, extra: f64, out: &mut Vec<Obstacle>) {
+        out.clear();
+        for tr in &self.tracks[..self.n] {
+            let (p, q, sigma, sigma_pos, sphere) = pose_at(tr, t);
+            let base = self.margin + extra;
+            // The shape inflated by its surface bound, or the bounding sphere by the position
+            // bound when the attitude is too uncertain for the shape to be the tighter one.
+            let o = if sphere || sigma - sigma_pos >= tr.lever {
+                Obstacle::from_desc(tr.id, &DebrisShape::default(), tr.radius, &p, &q, sigma_pos + base)
+            } else {
+                Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &p, &q, sigma + base)
+            };
+            if out.len() < out.capacity() {
+                out.push(o);
+            }
+        }
+    }
+
+    /// The pose of track `i` at `t`: (position, attitude, σ, σ of the position,
+    /// shape-is-its-bounding-sphere).
+    pub fn pose_at(&self, i: usize, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
+        pose_at(&self.tracks[i], t)
+    }
+
+    /// Id of track `i`.
+    pub fn id(&self, i: usize) -> u32 {
+        self.tracks[i].id
+    }
+}
+
+fn finish(t: &mut Track) {
+    let n = t.poses.len();
+    let r = t.radius;
+    let mut speed: f64 = 0.0;
+    for w in t.poses.windows(2) {
+        let dt = w[1].t - w[0].t;
+        let dp = ((w[1].p[0] - w[0].p[0]).powi(2)
+            + (w[1].p[1] - w[0].p[1]).powi(2)
+            + (w[1].p[2] - w[0].p[2]).powi(2))
+        .sqrt();
+        let da = quat_angle(&w[0].q, &w[1].q);
+        let ds = (w[1].sigma - w[0].sigma).abs();
+        speed = speed.max((dp + da * r + ds) / dt);
+    }
+    t.sigma_rate = 0.0;
+    if t.after == After::Extrapolate && n >= 1 {
+        let last = t.poses[n - 1];
+        // σ grew from about 0 at the forecast's t0, one step before the first pose.
+        let step = if n >= 2 { t.poses[1].t - t.poses[0].t } else { 1.0 };
+        let mut rate = last.sigma / (last.t - t.poses[0].t + step);
+        if n >= 2 {
+            let prev = t.poses[n - 2];
+            rate = rate.max((last.sigma - prev.sigma) / (last.t - prev.t));
+        }
+        t.sigma_rate = rate.max(0.0);
+        speed += t.sigma_rate;
+    }
+    t.speed = speed;
+}
+
+fn pose_at(tr: &Track, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
+    let ps = &tr.poses;
+    let n = ps.len();
+    if n == 1 {
+        let a = ps[0];
+        return match tr.after {
+            After::Hold => (a.p, a.q, a.sigma, a.sigma_pos, false),
+            After::Extrapolate => {
+                let dt = (t - a.t).max(0.0);
+                (a.p, a.q, a.sigma + tr.sigma_rate * dt, a.sigma_pos + tr.sigma_rate * dt, dt > 0.0)
+            }
+        };
+    }
+    // Interval [k, k+1] holding t (clamped to the first / last).
+    let k = if t <= ps[0].t { 0 } else { ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2) };
+    let (a, b) = (ps[k], ps[k + 1]);
+    let f = (t - a.t) / (b.t - a.t);
+    if f <= 1.0 {
+        let (p, q) = interpolate_pose(&a.p, &a.q, &b.p, &b.q, f);
+        let lin = |x: f64, y: f64| (x + f * (y - x)).max(x.min(y));
+        return (p, q, lin(a.sigma, b.sigma), lin(a.sigma_pos, b.sigma_pos), false);
+    }
+    // Past the last pose.
+    match tr.after {
+        After::Hold => (b.p, b.q, b.sigma, b.sigma_pos, false),
+        After::Extrapolate => {
+            let (p, q) = interpolate_pose(&a.p, &a.q, &b.p, &b.q, f);
+            let g = tr.sigma_rate * (t - b.t);
+            (p, q, b.sigma + g, b.sigma_pos + g, true)
+        }
+    }
+}

@@ -1,0 +1,412 @@
+//! dkrrt-collision: the arm's link capsules posed at `q`, and their distances to posed
+//! obstacle shapes. One crate for the simulator's true contact check and the planner's
+//! predicted checks, so both measure with the same code.
+//!
+//! * [`ArmPoser`] poses the model's collision capsules (one per moving link) at joint
+//!   positions `q`, with per-link bounding spheres for the broad phase, and knows each
+//!   joint's lever arm (how fast any link point can move per rad/s of that joint).
+//! * [`Obstacle`] is a shape at a pose: a primitive from the message contract
+//!   ([`DebrisShape`]: sphere, capsule, box with offset) or an exact parry3d shape (the
+//!   simulator's convex hulls), optionally inflated by a radius.
+//! * [`proximity`] measures the smallest separation between the arm and the obstacles, with a
+//!   bounding-sphere broad phase, analytic narrow phases for spheres and capsules and parry3d
+//!   (GJK) for boxes and hulls. [`clearance`] is the same with an early exit below a threshold,
+//!   for the planner's yes/no checks.
+//!
+//! Everything here is allocation-free (tested with a counting allocator).
+
+pub mod pose;
+
+use dkrrt_model::{ArmModel, JVec, NJ};
+use dkrrt_msg::{DebrisShape, ShapeKind};
+use parry3d_f64::glamx::DQuat;
+use parry3d_f64::math::{Pose, Vector as PVec};
+use parry3d_f64::query;
+use parry3d_f64::shape::{Capsule, Cuboid, Shape, SharedShape};
+
+pub use pose::{interpolate_pose, quat_angle, quat_rotate};
+
+/// One arm link's capsule in the base frame: the points within `r` of the segment `a`–`b`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PosedCapsule {
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub r: f64,
+    /// Centre of the bounding sphere (the segment's midpoint), and its radius.
+    pub centre: [f64; 3],
+    pub bound: f64,
+}
+
+impl PosedCapsule {
+    pub fn new(a: [f64; 3], b: [f64; 3], r: f64) -> Self {
+        let centre = [(a[0] + b[0]) * 0.5, (a[1] + b[1]) * 0.5, (a[2] + b[2]) * 0.5];
+        PosedCapsule { a, b, r, centre, bound: 0.5 * dist(&a, &b) + r }
+    }
+}
+
+/// Poses the arm's collision capsules. Built once per model (allocation-free afterwards).
+#[derive(Debug, Clone)]
+pub struct ArmPoser {
+    model: ArmModel,
+    /// Base-frame offset added to every posed point (e.g. the base's position in LVLH).
+    offset: [f64; 3],
+    lever: [f64; NJ],
+}
+
+impl ArmPoser {
+    pub fn new(model: ArmModel) -> Self {
+        Self::with_offset(model, [0.0; 3])
+    }
+
+    /// Capsules are reported in a frame whose origin is `-offset` in the base frame (a point
+    /// `x` of the base frame is reported as `x + offset`).
+    pub fn with_offset(model: ArmModel, offset: [f64; 3]) -> Self {
+        let lever = lever_arms(&model);
+        ArmPoser { model, offset, lever }
+    }
+
+    pub fn model(&self) -> &ArmModel {
+        &self.model
+    }
+
+    /// Per joint `i`: an upper bound on the distance from joint `i`'s axis of any point of the
+    /// links it moves, m. A point of the arm moves at most `Σ |q̇_i| · lever[i]` m/s.
+    pub fn lever_arms(&self) -> &[f64; NJ] {
+        &self.lever
+    }
+
+    /// Upper bound on the speed of any arm point when every joint moves at most at `v_max`, m/s.
+    pub fn max_point_speed(&self, v_max: &[f64; NJ]) -> f64 {
+        (0..NJ).map(|i| v_max[i].abs() * self.lever[i]).sum()
+    }
+
+    /// The capsules at joint positions `q`.
+    pub fn pose(&self, q: &[f64; NJ], out: &mut [PosedCapsule; NJ]) {
+        let poses = self.model.link_poses(&JVec::from(*q));
+        let o = &self.offset;
+        for (c, lc) in out.iter_mut().zip(self.model.collision_capsules()) {
+            let (a, b) = lc.world_segment(&poses[lc.link]);
+            *c = PosedCapsule::new(
+                [a.x + o[0], a.y + o[1], a.z + o[2]],
+                [b.x + o[0], b.y + o[1], b.z + o[2]],
+                lc.radius,
+            );
+        }
+    }
+}
+
+/// Lever arm bound per joint: the chain of rigid offsets from joint `i`'s origin to the farthest
+/// capsule point of every link after it (triangle inequality, so it holds at every `q`).
+fn lever_arms(model: &ArmModel) -> [f64; NJ] {
+    let poses = model.link_poses(&JVec::zeros());
+    // Distance between consecutive joint origins (link frame origins): constant in q.
+    let mut hop = [0.0; NJ];
+    for k in 1..NJ {
+        let d = poses[k].translation.vector - poses[k - 1].translation.vector;
+        hop[k] = d.norm();
+    }
+    let mut reach = [0.0f64; NJ]; // farthest capsule point from link k's origin
+    for lc in model.collision_capsules() {
+        let r = lc.a.coords.norm().max(lc.b.coords.norm()) + lc.radius;
+        reach[lc.link] = reach[lc.link].max(r);
+    }
+    let mut lever = [0.0; NJ];
+    for (i, l) in lever.iter_mut().enumerate() {
+        let mut chain = 0.0;
+        let mut best: f64 = 0.0;
+        for k in i..NJ {
+            if k > i {
+                chain += hop[k];
+            }
+            best = best.max(chain + reach[k]);
+        }
+        *l = best;
+    }
+    lever
+}
+
+/// An obstacle's geometry.
+#[derive(Clone)]
+pub enum Geom {
+    Sphere {
+        r: f64,
+    },
+    /// Along the local z axis.
+    Capsule {
+        half_length: f64,
+        r: f64,
+    },
+    Cuboid {
+        half: [f64; 3],
+    },
+    /// Any parry3d shape (exact hulls of the simulator).
+    Shape(SharedShape),
+}
+
+/// A shape at a pose, inflated by `inflate` (its surface grows by that much).
+#[derive(Clone)]
+pub struct Obstacle {
+    pub id: u32,
+    pub geom: Geom,
+    /// Position of the geometry's centre and attitude (w, x, y, z).
+    pub p: [f64; 3],
+    pub q: [f64; 4],
+    /// Bounding sphere about `p` (not inflated).
+    pub bound: f64,
+    pub inflate: f64,
+}
+
+impl std::fmt::Debug for Obstacle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Obstacle")
+            .field("id", &self.id)
+            .field("p", &self.p)
+            .field("q", &self.q)
+            .field("bound", &self.bound)
+            .field("inflate", &self.inflate)
+            .finish()
+    }
+}
+
+impl Obstacle {
+    /// From a contract descriptor at body pose (`p`, `q` = w, x, y, z); `bounding_radius` is
+    /// used for `Unknown` shapes.
+    pub fn from_desc(
+        id: u32,
+        shape: &DebrisShape,
+        bounding_radius: f64,
+        p: &[f64; 3],
+        q: &[f64; 4],
+        inflate: f64,
+    ) -> Self {
+        let d = shape.dims;
+        let off = quat_rotate(q, &shape.offset);
+        let c = [p[0] + off[0], p[1] + off[1], p[2] + off[2]];
+        let (geom, bound) = match ShapeKind::from_u32(shape.kind) {
+            Some(ShapeKind::Sphere) => (Geom::Sphere { r: d[0] }, d[0]),
+            Some(ShapeKind::Capsule) => (Geom::Capsule { half_length: d[0], r: d[1] }, d[0] + d[1]),
+            Some(ShapeKind::Box) => {
+                (Geom::Cuboid { half: d }, (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
+            }
+            _ => (Geom::Sphere { r: bounding_radius }, bounding_radius),
+        };
+        Obstacle { id, geom, p: c, q: *q, bound, inflate }
+    }
+
+    /// An exact parry3d shape at a pose (`bound`: its bounding radius about `p`).
+    pub fn from_shape(id: u32, shape: SharedShape, bound: f64, p: &[f64; 3], q: &[f64; 4]) -> Self {
+        Obstacle { id, geom: Geom::Shape(shape), p: *p, q: *q, bound, inflate: 0.0 }
+    }
+
+    fn parry_pose(&self) -> Pose {
+        let q = &self.q;
+        Pose::from_parts(PVec::new(self.p[0], self.p[1], self.p[2]), DQuat::from_xyzw(q[1], q[2], q[3], q[0]))
+    }
+
+    /// Distance from the capsule to the (inflated) obstacle; negative inside, where known.
+    pub fn distance(&self, c: &PosedCapsule) -> f64 {
+        let raw = match &self.geom {
+            Geom::Sphere { r } => seg_point(&c.a, &c.b, &self.p) - c.r - r,
+            Geom::Capsule { half_length, r } => {
+                let z = quat_rotate(&self.q, &[0.0, 0.0, *half_length]);
+                let p0 = [self.p[0] - z[0], self.p[1] - z[1], self.p[2] - z[2]];
+                let p1 = [self.p[0] + z[0], self.p[1] + z[1], self.p[2] + z[2]];
+                seg_seg(&c.a, &c.b, &p0, &p1) - c.r - r
+            }
+            Geom::Cuboid { half } => {
+                let cub = Cuboid::new(PVec::new(half[0], half[1], half[2]));
+                self.parry_distance(c, &cub)
+            }
+            Geom::Shape(s) => self.parry_distance(c, s.as_ref()),
+        };
+        raw - self.inflate
+    }
+
+    fn parry_distance(&self, c: &PosedCapsule, shape: &dyn Shape) -> f64 {
+        let cap = Capsule::new(PVec::new(c.a[0], c.a[1], c.a[2]), PVec::new(c.b[0], c.b[1], c.b[2]), c.r);
+        match query::distance(&self.parry_pose(), shape, &Pose::IDENTITY, &cap) {
+            Ok(d) => d.distance,
+            // Unsupported pair: the bounding spheres' separation (a lower bound).
+            Err(_) => dist(&c.centre, &self.p) - c.bound - self.bound,
+        }
+    }
+
+    /// A lower bound of [`Self::distance`] from the bounding spheres.
+    #[inline]
+    pub fn lower_bound(&self, c: &PosedCapsule) -> f64 {
+        dist(&c.centre, &self.p) - c.bound - self.bound - self.inflate
+    }
+}
+
+/// The contract descriptor of a parry3d shape as a perception driver would give it: spheres,
+/// z-axis capsules and boxes as they are, anything else as its body-frame bounding box.
+pub fn descriptor_of(shape: &dyn Shape) -> DebrisShape {
+    if let Some(b) = shape.as_ball() {
+        return DebrisShape::sphere(b.radius);
+    }
+    if let Some(c) = shape.as_capsule() {
+        let (a, b) = (c.segment.a, c.segment.b);
+        let on_z = a.x.abs() < 1e-12 && a.y.abs() < 1e-12 && b.x.abs() < 1e-12 && b.y.abs() < 1e-12;
+        if on_z && (a.z + b.z).abs() < 1e-12 {
+            return DebrisShape::capsule((b.z - a.z).abs() * 0.5, c.radius);
+        }
+    }
+    if let Some(c) = shape.as_cuboid() {
+        let h = c.half_extents;
+        return DebrisShape::cuboid([h.x, h.y, h.z], [0.0; 3]);
+    }
+    let bb = shape.compute_local_aabb();
+    let (lo, hi) = (bb.mins, bb.maxs);
+    DebrisShape::cuboid(
+        [(hi.x - lo.x) * 0.5, (hi.y - lo.y) * 0.5, (hi.z - lo.z) * 0.5],
+        [(hi.x + lo.x) * 0.5, (hi.y + lo.y) * 0.5, (hi.z + lo.z) * 0.5],
+    )
+}
+
+/// A link–obstacle pair within the contact margin.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ContactPair {
+    /// Link index (0 = first moving link).
+    pub link: usize,
+    pub id: u32,
+    pub distance: f64,
+}
+
+/// Result of [`proximity`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Proximity {
+    /// Smallest separation (∞ without obstacles), m.
+    pub min_distance: f64,
+    pub link: usize,
+    pub id: u32,
+    /// Pairs within the margin (may exceed the contact buffer).
+    pub n_contacts: usize,
+}
+
+impl Proximity {
+    pub fn any_contact(&self) -> bool {
+        self.n_contacts > 0
+    }
+}
+
+/// Smallest separation between the arm's capsules and the obstacles; pairs within `margin` are
+/// written to `contacts` (up to its length). Pairs whose bounding spheres cannot beat the
+/// current minimum nor reach the margin are skipped.
+pub fn proximity(
+    arm: &[PosedCapsule],
+    obstacles: &[Obstacle],
+    margin: f64,
+    contacts: &mut [ContactPair],
+) -> Proximity {
+    let mut out = Proximity { min_distance: f64::INFINITY, link: 0, id: u32::MAX, n_contacts: 0 };
+    for (li, c) in arm.iter().enumerate() {
+        for o in obstacles {
+            let lower = o.lower_bound(c);
+            if lower > out.min_distance && lower > margin {
+                continue;
+            }
+            let d = o.distance(c);
+            if d < out.min_distance {
+                out.min_distance = d;
+                out.link = li;
+                out.id = o.id;
+            }
+            if d <= margin {
+                if out.n_contacts < contacts.len() {
+                    contacts[out.n_contacts] = ContactPair { link: li, id: o.id, distance: d };
+                }
+                out.n_contacts += 1;
+            }
+        }
+    }
+    out
+}
+
+/// The smallest separation, or any value `< stop_below` as soon as one pair is found below it
+/// (the planner's check: only "is everything at least `stop_below` away" must be exact).
+/// Pairs whose bounding spheres are farther than `cap` are not measured: the result is
+/// `min(true clearance, cap)` when everything is farther than `stop_below`.
+pub fn clearance(arm: &[PosedCapsule], obstacles: &[Obstacle], stop_below: f64, cap: f64) -> f64 {
+    let mut best = cap;
+    for o in obstacles {
+        for c in arm {
+            let lower = o.lower_bound(c);
+            if lower >= best {
+                continue;
+            }
+            let d = o.distance(c);
+            if d < best {
+                best = d;
+                if best < stop_below {
+                    return best;
+                }
+            }
+        }
+    }
+    best
+}
+
+#[inline]
+fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[inline]
+fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Distance from point `p` to segment `a`–`b`.
+pub fn seg_point(a: &[f64; 3], b: &[f64; 3], p: &[f64; 3]) -> f64 {
+    let ab = sub(b, a);
+    let l2 = dot(&ab, &ab);
+    let s = if l2 > 0.0 { (dot(&sub(p, a), &ab) / l2).clamp(0.0, 1.0) } else { 0.0 };
+    dist(&[a[0] + ab[0] * s, a[1] + ab[1] * s, a[2] + ab[2] * s], p)
+}
+
+/// Distance between segments `p1`–`q1` and `p2`–`q2` (closest points, clamped; Ericson 5.1.9).
+pub fn seg_seg(p1: &[f64; 3], q1: &[f64; 3], p2: &[f64; 3], q2: &[f64; 3]) -> f64 {
+    let d1 = sub(q1, p1);
+    let d2 = sub(q2, p2);
+    let r = sub(p1, p2);
+    let a = dot(&d1, &d1);
+    let e = dot(&d2, &d2);
+    let f = dot(&d2, &r);
+    const EPS: f64 = 1e-18;
+    let (s, t);
+    if a <= EPS && e <= EPS {
+        return dist(p1, p2);
+    }
+    if a <= EPS {
+        s = 0.0;
+        t = (f / e).clamp(0.0, 1.0);
+    } else {
+        let c = dot(&d1, &r);
+        if e <= EPS {
+            t = 0.0;
+            s = (-c / a).clamp(0.0, 1.0);
+        } else {
+            let b = dot(&d1, &d2);
+            let denom = a * e - b * b;
+            let mut s0 = if denom > EPS * a * e { ((b * f - c * e) / denom).clamp(0.0, 1.0) } else { 0.0 };
+            let mut t0 = (b * s0 + f) / e;
+            if t0 < 0.0 {
+                t0 = 0.0;
+                s0 = (-c / a).clamp(0.0, 1.0);
+            } else if t0 > 1.0 {
+                t0 = 1.0;
+                s0 = ((b - c) / a).clamp(0.0, 1.0);
+            }
+            s = s0;
+            t = t0;
+        }
+    }
+    let c1 = [p1[0] + d1[0] * s, p1[1] + d1[1] * s, p1[2] + d1[2] * s];
+    let c2 = [p2[0] + d2[0] * t, p2[1] + d2[1] * t, p2[2] + d2[2] * t];
+    dist(&c1, &c2)
+}

@@ -1,0 +1,216 @@
+//! Known distances, the conservative descriptors, the lever-arm bound, and no allocation.
+
+use dkrrt_collision::*;
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::DebrisShape;
+use dkrrt_rt::alloc_count::{count, CountingAlloc};
+use parry3d_f64::math::Vector as PVec;
+use parry3d_f64::shape::SharedShape;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+#[global_allocator]
+static ALLOC: CountingAlloc = CountingAlloc;
+
+const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
+
+fn link() -> PosedCapsule {
+    // Along x from 0 to 1 m, radius 0.1.
+    PosedCapsule::new([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.1)
+}
+
+#[test]
+fn known_distances_for_every_kind() {
+    let c = link();
+    // Sphere r 0.2 centred 1 m above the segment's middle: 1 - 0.1 - 0.2.
+    let s = Obstacle::from_desc(1, &DebrisShape::sphere(0.2), 0.0, &[0.5, 0.0, 1.0], &ID, 0.0);
+    assert!((s.distance(&c) - 0.7).abs() < 1e-12);
+    // Beyond the segment's end: from the end point.
+    let s = Obstacle::from_desc(1, &DebrisShape::sphere(0.2), 0.0, &[2.0, 0.0, 0.0], &ID, 0.0);
+    assert!((s.distance(&c) - 0.7).abs() < 1e-12);
+    // Inflation shrinks the distance one for one.
+    let s = Obstacle::from_desc(1, &DebrisShape::sphere(0.2), 0.0, &[2.0, 0.0, 0.0], &ID, 0.25);
+    assert!((s.distance(&c) - 0.45).abs() < 1e-12);
+    // Rod (capsule along z) crossing above: axis from z = 0.5 to 1.5 at x = 0.5, y = 0.3.
+    let r = Obstacle::from_desc(2, &DebrisShape::capsule(0.5, 0.05), 0.0, &[0.5, 0.3, 1.0], &ID, 0.0);
+    assert!((r.distance(&c) - (0.5f64.hypot(0.3) - 0.15)).abs() < 1e-12, "{}", r.distance(&c));
+    // The same rod turned 90° about x (axis along y), centred above the link: vertical gap 1.0.
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let r = Obstacle::from_desc(
+        2,
+        &DebrisShape::capsule(0.5, 0.05),
+        0.0,
+        &[0.5, 0.0, 1.0],
+        &[h, h, 0.0, 0.0],
+        0.0,
+    );
+    assert!((r.distance(&c) - 0.85).abs() < 1e-12, "{}", r.distance(&c));
+    // Box half extents 0.2 at z = 1: face at z = 0.8, gap 0.8 - 0.1.
+    let b = Obstacle::from_desc(3, &DebrisShape::cuboid([0.2; 3], [0.0; 3]), 0.0, &[0.5, 0.0, 1.0], &ID, 0.0);
+    assert!((b.distance(&c) - 0.7).abs() < 1e-9, "{}", b.distance(&c));
+    // Box with a body offset of -0.3 m in z: the face comes 0.3 m closer.
+    let b = Obstacle::from_desc(
+        3,
+        &DebrisShape::cuboid([0.2; 3], [0.0, 0.0, -0.3]),
+        0.0,
+        &[0.5, 0.0, 1.0],
+        &ID,
+        0.0,
+    );
+    assert!((b.distance(&c) - 0.4).abs() < 1e-9, "{}", b.distance(&c));
+    // Unknown shape: the bounding sphere.
+    let u = Obstacle::from_desc(4, &DebrisShape::default(), 0.3, &[0.5, 0.0, 1.0], &ID, 0.0);
+    assert!((u.distance(&c) - 0.6).abs() < 1e-12);
+}
+
+#[test]
+fn segment_distances_match_brute_force() {
+    let mut rng = SmallRng::seed_from_u64(3);
+    let mut p = || [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)];
+    for _ in 0..500 {
+        let (a, b, c, d) = (p(), p(), p(), p());
+        let mut best = f64::INFINITY;
+        for i in 0..=200 {
+            let s = i as f64 / 200.0;
+            let x = [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2])];
+            best = best.min(seg_point(&c, &d, &x));
+        }
+        let exact = seg_seg(&a, &b, &c, &d);
+        assert!(exact <= best + 1e-12 && best - exact < 2e-2, "{exact} vs {best}");
+    }
+}
+
+#[test]
+fn descriptors_enclose_the_exact_shapes() {
+    // A convex hull off-centre: its box descriptor is never farther than the hull itself.
+    let pts: Vec<PVec> =
+        [[0.3, 0.1, 0.0], [-0.1, 0.2, 0.1], [0.0, -0.2, 0.3], [0.1, 0.0, -0.2], [0.4, 0.3, 0.2]]
+            .iter()
+            .map(|p| PVec::new(p[0], p[1], p[2]))
+            .collect();
+    let hull = SharedShape::convex_hull(&pts).unwrap();
+    let desc = descriptor_of(hull.as_ref());
+    assert_eq!(desc.kind, dkrrt_msg::ShapeKind::Box as u32);
+    let mut rng = SmallRng::seed_from_u64(5);
+    for _ in 0..300 {
+        let q = {
+            let v: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            v.map(|x| x / n)
+        };
+        let p = [rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5)];
+        let exact = Obstacle::from_shape(1, hull.clone(), 1.0, &p, &q);
+        let boxed = Obstacle::from_desc(1, &desc, 0.0, &p, &q, 0.0);
+        let c = link();
+        assert!(boxed.distance(&c) <= exact.distance(&c) + 1e-9);
+    }
+    // Spheres, z capsules and boxes are described exactly.
+    assert_eq!(descriptor_of(SharedShape::ball(0.3).as_ref()), DebrisShape::sphere(0.3));
+    assert_eq!(descriptor_of(SharedShape::capsule_z(0.4, 0.03).as_ref()), DebrisShape::capsule(0.4, 0.03));
+    assert_eq!(
+        descriptor_of(SharedShape::cuboid(0.1, 0.2, 0.3).as_ref()),
+        DebrisShape::cuboid([0.1, 0.2, 0.3], [0.0; 3])
+    );
+}
+
+#[test]
+fn no_arm_point_moves_faster_than_the_lever_bound() {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let lever = *poser.lever_arms();
+    assert!(lever.iter().all(|l| *l > 0.0 && *l < 5.0), "{lever:?}");
+    assert!(lever.windows(2).all(|w| w[0] >= w[1] - 1e-12), "outer joints move less: {lever:?}");
+    let mut rng = SmallRng::seed_from_u64(9);
+    let (mut a, mut b) = ([PosedCapsule::default(); NJ], [PosedCapsule::default(); NJ]);
+    let mut worst: f64 = 0.0;
+    for _ in 0..2000 {
+        let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.5..2.5));
+        let dq: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-0.01..0.01));
+        let q2: [f64; NJ] = std::array::from_fn(|i| q[i] + dq[i]);
+        poser.pose(&q, &mut a);
+        poser.pose(&q2, &mut b);
+        let bound: f64 = (0..NJ).map(|i| dq[i].abs() * lever[i]).sum();
+        for k in 0..NJ {
+            for (x, y) in [(a[k].a, b[k].a), (a[k].b, b[k].b)] {
+                let m = ((x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)).sqrt();
+                // Chords are shorter than arcs: the bound holds with room to spare.
+                assert!(m <= bound * (1.0 + 1e-9), "{m} > {bound}");
+                worst = worst.max(m / bound);
+            }
+        }
+    }
+    assert!(worst > 0.3, "the bound is not loose beyond use: worst ratio {worst}");
+}
+
+fn scene(rng: &mut SmallRng, n: usize) -> Vec<Obstacle> {
+    (0..n)
+        .map(|i| {
+            let p = [rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)];
+            let q = {
+                let v: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+                let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                v.map(|x| x / n)
+            };
+            let d = match i % 3 {
+                0 => DebrisShape::sphere(0.2),
+                1 => DebrisShape::capsule(0.6, 0.03),
+                _ => DebrisShape::cuboid([0.3, 0.2, 0.01], [0.0; 3]),
+            };
+            Obstacle::from_desc(i as u32, &d, 0.0, &p, &q, 0.05)
+        })
+        .collect()
+}
+
+#[test]
+fn proximity_and_clearance_agree_with_all_pairs() {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let mut rng = SmallRng::seed_from_u64(11);
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut contacts = [ContactPair::default(); 4];
+    for _ in 0..200 {
+        let obs = scene(&mut rng, 32);
+        let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+        poser.pose(&q, &mut caps);
+        let brute =
+            caps.iter().flat_map(|c| obs.iter().map(move |o| o.distance(c))).fold(f64::INFINITY, f64::min);
+        let pr = proximity(&caps, &obs, 0.0, &mut contacts);
+        assert!((pr.min_distance - brute).abs() < 1e-12);
+        assert_eq!(pr.any_contact(), brute <= 0.0);
+        let cl = clearance(&caps, &obs, 0.0, f64::INFINITY);
+        if brute >= 0.0 {
+            assert!((cl - brute).abs() < 1e-12);
+        } else {
+            assert!(cl < 0.0);
+        }
+        assert_eq!(clearance(&caps, &obs, -1.0, 0.25), brute.min(0.25).max(cl.min(0.25)));
+    }
+}
+
+#[test]
+fn posing_and_checking_allocate_nothing() {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let mut rng = SmallRng::seed_from_u64(12);
+    let mut obs = scene(&mut rng, 31);
+    let hull = SharedShape::convex_hull(&[
+        PVec::new(0.0, 0.0, 0.0),
+        PVec::new(0.3, 0.0, 0.0),
+        PVec::new(0.0, 0.3, 0.0),
+        PVec::new(0.0, 0.0, 0.3),
+    ])
+    .unwrap();
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut contacts = [ContactPair::default(); 8];
+    let (_, st) = count(|| {
+        for k in 0..500 {
+            // The simulator re-poses exact shapes every tick (an Arc clone, no allocation).
+            if obs.len() == 32 {
+                obs.pop();
+            }
+            obs.push(Obstacle::from_shape(99, hull.clone(), 0.3, &[1.0, 0.5, 0.2], &ID));
+            let q = [0.001 * k as f64; NJ];
+            poser.pose(&q, &mut caps);
+            std::hint::black_box(proximity(&caps, &obs, 0.0, &mut contacts));
+            std::hint::black_box(clearance(&caps, &obs, 0.0, 1.0));
+        }
+    });
+    assert_eq!((st.allocs, st.reallocs, st.deallocs), (0, 0, 0), "{st:?}");
+}

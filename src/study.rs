@@ -1,0 +1,267 @@
+//! `dkrrt study`: threat episodes run in lockstep, one row per (scene, episode, method).
+//!
+//! Every method runs the same episodes (same generated start, goal and debris). The predictor
+//! never sees an episode before it runs: its models are fitted once, on generic random scenes
+//! (`predictor.fit = "generic"`), plus the shipped deep model; during the episode it refines
+//! online from the observations only. Episodes run in parallel on the available cores; each
+//! row is appended to the JSON-lines file `<json>.rows` as it finishes (an interrupted study
+//! keeps them), and the JSON file gets all rows at the end.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::Mutex;
+
+use dkrrt_config::{EpisodeCfg, Scenario};
+use dkrrt_predictor::Models;
+use serde::Serialize;
+
+use crate::lockstep::Lockstep;
+
+/// Plan compute time summary, ms.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct PlanMs {
+    pub p50: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+/// One episode of one method.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub episode: u64,
+    pub method: String,
+    /// Goal reached (every joint within 0.01 rad) before the time limit, no contact at any tick.
+    pub completed: bool,
+    pub collision: bool,
+    pub time_to_goal_s: Option<f64>,
+    pub min_distance_m: Option<f64>,
+    pub replans: u64,
+    pub plan_ms: PlanMs,
+    pub first_plan_ms: Option<f64>,
+    pub fallbacks_keep: u64,
+    pub fallbacks_escape: u64,
+    pub fallbacks_brake: u64,
+    pub deadline_misses: u64,
+    pub safe_holds: u64,
+    pub straight_duration_s: f64,
+    pub time_limit_s: f64,
+    /// Plant seconds simulated and the wall time they took.
+    pub plant_s: f64,
+    pub wall_s: f64,
+    pub error: Option<String>,
+}
+
+/// The study's options.
+#[derive(Debug, Clone)]
+pub struct StudyOptions {
+    pub scenes: Vec<String>,
+    pub episodes: u64,
+    pub methods: Vec<String>,
+    pub seed: u64,
+    pub threads: usize,
+}
+
+/// The base scenario of every episode: the embedded default, with the predictor fitted on
+/// generic scenes and real-time options off (lockstep).
+pub fn base_scenario() -> Scenario {
+    let mut sc = Scenario::default_scenario();
+    sc.predictor.fit = "generic".into();
+    sc.run.mode = dkrrt_config::Mode::Lockstep;
+    sc
+}
+
+/// Runs one episode of one method to its end (goal, contact or time limit).
+pub fn run_episode(
+    base: &Scenario,
+    scene: &str,
+    index: u64,
+    seed: u64,
+    method: &str,
+    models: &Models,
+) -> Row {
+    let t_wall = std::time::Instant::now();
+    let mut sc = base.clone();
+    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed });
+    sc.planner.method = method.to_string();
+    let mut row = Row {
+        scene: scene.to_string(),
+        episode: index,
+        method: method.to_string(),
+        completed: false,
+        collision: false,
+        time_to_goal_s: None,
+        min_distance_m: None,
+        replans: 0,
+        plan_ms: PlanMs::default(),
+        first_plan_ms: None,
+        fallbacks_keep: 0,
+        fallbacks_escape: 0,
+        fallbacks_brake: 0,
+        deadline_misses: 0,
+        safe_holds: 0,
+        straight_duration_s: 0.0,
+        time_limit_s: 0.0,
+        plant_s: 0.0,
+        wall_s: 0.0,
+        error: None,
+    };
+    let res = (|| -> Result<(), String> {
+        let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
+        row.straight_duration_s = ep.straight_duration_s;
+        row.time_limit_s = ep.time_limit_s;
+        let mut ls = Lockstep::with_models(&sc, Some(models.clone()))?;
+        let ticks = (ep.time_limit_s * sc.run.control_hz).round() as u64;
+        for _ in 0..ticks {
+            ls.tick(true);
+            if ls.collided() || ls.goal_reached_s.is_some() {
+                break;
+            }
+        }
+        let r = ls.report(&sc);
+        row.collision = ls.collided();
+        row.time_to_goal_s = ls.goal_reached_s;
+        row.completed = !row.collision && ls.goal_reached_s.is_some_and(|t| t <= ep.time_limit_s);
+        row.min_distance_m = r.debris.and_then(|d| d.min_distance_m);
+        row.safe_holds = r.safe_hold_entries;
+        row.plant_s = r.ticks as f64 * sc.period_ns() as f64 * 1e-9;
+        if let Some(p) = r.planner {
+            row.replans = p.replans;
+            row.plan_ms = PlanMs { p50: p.plan_ms.p50, p99: p.plan_ms.p99, max: p.plan_ms.max };
+            row.first_plan_ms = p.first_plan_ms;
+            row.fallbacks_keep = p.fallbacks.keep;
+            row.fallbacks_escape = p.fallbacks.escape;
+            row.fallbacks_brake = p.fallbacks.brake;
+            row.deadline_misses = p.deadline_misses;
+        }
+        Ok(())
+    })();
+    row.error = res.err();
+    row.wall_s = t_wall.elapsed().as_secs_f64();
+    row
+}
+
+/// Runs the study; rows stream to `rows_path` (JSON lines) as they finish.
+pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Result<Vec<Row>, String> {
+    for s in &opts.scenes {
+        if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) {
+            return Err(format!("--scenes: unknown scene {s:?} ({})", dkrrt_debris::SCENE_NAMES.join(", ")));
+        }
+    }
+    for m in &opts.methods {
+        if m != "straight" && m != "dk-rrt" {
+            return Err(format!("--methods: unknown method {m:?} (straight, dk-rrt)"));
+        }
+    }
+    let base = base_scenario();
+    let models = dkrrt_planner::predict::fit_models(&base)?;
+    let mut jobs = Vec::new();
+    for s in &opts.scenes {
+        for e in 0..opts.episodes {
+            for m in &opts.methods {
+                jobs.push((s.clone(), e, m.clone()));
+            }
+        }
+    }
+    let sink = match rows_path {
+        Some(p) => Some(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?),
+        None => None,
+    };
+    let total = jobs.len();
+    let state = Mutex::new((0usize, Vec::with_capacity(total), sink));
+    let next = Mutex::new(0usize);
+    let threads = opts.threads.max(1).min(total.max(1));
+    let t0 = std::time::Instant::now();
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| loop {
+                let i = {
+                    let mut n = next.lock().unwrap();
+                    let i = *n;
+                    *n += 1;
+                    i
+                };
+                let Some((scene, e, m)) = jobs.get(i) else { break };
+                let row = run_episode(&base, scene, *e, opts.seed, m, &models);
+                let mut st = state.lock().unwrap();
+                st.0 += 1;
+                if let Some(f) = st.2.as_mut() {
+                    let _ = writeln!(f, "{}", serde_json::to_string(&row).unwrap_or_default());
+                }
+                if progress {
+                    let el = t0.elapsed().as_secs_f64();
+                    let eta = el / st.0 as f64 * (total - st.0) as f64;
+                    eprintln!(
+                        "study: [{}/{total}] {} #{} {}: {}{} ({:.1} s plant in {:.2} s; ETA {:.0} s)",
+                        st.0,
+                        row.scene,
+                        row.episode,
+                        row.method,
+                        if row.completed {
+                            "completed"
+                        } else if row.collision {
+                            "COLLISION"
+                        } else {
+                            "not completed"
+                        },
+                        row.error.as_deref().map(|e| format!(" error: {e}")).unwrap_or_default(),
+                        row.plant_s,
+                        row.wall_s,
+                        eta
+                    );
+                }
+                st.1.push(row);
+            });
+        }
+    });
+    let mut rows = state.into_inner().map_err(|e| e.to_string())?.1;
+    rows.sort_by(|a, b| {
+        (a.scene.as_str(), a.episode, a.method.as_str()).cmp(&(
+            b.scene.as_str(),
+            b.episode,
+            b.method.as_str(),
+        ))
+    });
+    Ok(rows)
+}
+
+/// The per-scene table.
+pub fn table(rows: &[Row], scenes: &[String], methods: &[String]) -> String {
+    let mut s = String::from(
+        "scene          method    episodes  completed  collisions  time-to-goal s (median)  plan ms p50 / p99 / max  replans (mean)  lockstep speed\n",
+    );
+    for sc in scenes {
+        for m in methods {
+            let r: Vec<&Row> = rows.iter().filter(|r| &r.scene == sc && &r.method == m).collect();
+            if r.is_empty() {
+                continue;
+            }
+            let n = r.len();
+            let done = r.iter().filter(|x| x.completed).count();
+            let col = r.iter().filter(|x| x.collision).count();
+            let mut tg: Vec<f64> =
+                r.iter().filter_map(|x| x.time_to_goal_s.filter(|_| x.completed)).collect();
+            tg.sort_by(f64::total_cmp);
+            let med = tg.get(tg.len() / 2).copied();
+            let p50 = r.iter().map(|x| x.plan_ms.p50).fold(0.0, f64::max);
+            let p99 = r.iter().map(|x| x.plan_ms.p99).fold(0.0, f64::max);
+            let mx = r.iter().map(|x| x.plan_ms.max).fold(0.0, f64::max);
+            let replans = r.iter().map(|x| x.replans as f64).sum::<f64>() / n as f64;
+            let speed =
+                r.iter().map(|x| x.plant_s).sum::<f64>() / r.iter().map(|x| x.wall_s).sum::<f64>().max(1e-9);
+            s.push_str(&format!(
+                "{sc:<14} {m:<9} {n:>8}  {:>8.1}%  {:>6} ({:>3.0}%)  {:>23}  {:>7.2} / {:>6.2} / {:>6.2}  {:>14.1}  {:>10.0}x\n",
+                100.0 * done as f64 / n as f64,
+                col,
+                100.0 * col as f64 / n as f64,
+                med.map_or("-".into(), |v| format!("{v:.2}")),
+                p50,
+                p99,
+                mx,
+                replans,
+                speed
+            ));
+        }
+    }
+    s
+}
