@@ -46,9 +46,11 @@ pub struct Row {
     pub safe_holds: u64,
     pub straight_duration_s: f64,
     pub time_limit_s: f64,
-    /// Plant seconds simulated and the wall time they took.
+    /// Plant seconds simulated and the wall time they took (lockstep only), and the wall time
+    /// of generating the episode.
     pub plant_s: f64,
     pub wall_s: f64,
+    pub episode_gen_s: f64,
     pub error: Option<String>,
 }
 
@@ -71,19 +73,29 @@ pub fn base_scenario() -> Scenario {
     sc
 }
 
-/// Runs one episode of one method to its end (goal, contact or time limit).
-pub fn run_episode(
+/// The scenario of one episode (generated: start, goal, debris), with its episode.
+pub fn episode_scenario(
     base: &Scenario,
     scene: &str,
     index: u64,
     seed: u64,
+) -> Result<(Scenario, dkrrt_episodes::Episode), String> {
+    let mut sc = base.clone();
+    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed });
+    let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
+    Ok((sc, ep))
+}
+
+/// Runs one episode of one method to its end (goal, contact or time limit). `episode`: the
+/// generated episode (or why it could not be).
+pub fn run_episode(
+    episode: &Result<(Scenario, dkrrt_episodes::Episode), String>,
+    scene: &str,
+    index: u64,
     method: &str,
     models: &Models,
 ) -> Row {
     let t_wall = std::time::Instant::now();
-    let mut sc = base.clone();
-    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed });
-    sc.planner.method = method.to_string();
     let mut row = Row {
         scene: scene.to_string(),
         episode: index,
@@ -104,10 +116,13 @@ pub fn run_episode(
         time_limit_s: 0.0,
         plant_s: 0.0,
         wall_s: 0.0,
+        episode_gen_s: 0.0,
         error: None,
     };
     let res = (|| -> Result<(), String> {
-        let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
+        let (sc, ep) = episode.as_ref().map_err(|e| e.clone())?;
+        let mut sc = sc.clone();
+        sc.planner.method = method.to_string();
         row.straight_duration_s = ep.straight_duration_s;
         row.time_limit_s = ep.time_limit_s;
         let mut ls = Lockstep::with_models(&sc, Some(models.clone()))?;
@@ -155,22 +170,21 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
     }
     let base = base_scenario();
     let models = dkrrt_planner::predict::fit_models(&base)?;
+    // One job per episode: it is generated once and run with every method.
     let mut jobs = Vec::new();
     for s in &opts.scenes {
         for e in 0..opts.episodes {
-            for m in &opts.methods {
-                jobs.push((s.clone(), e, m.clone()));
-            }
+            jobs.push((s.clone(), e));
         }
     }
     let sink = match rows_path {
         Some(p) => Some(std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?),
         None => None,
     };
-    let total = jobs.len();
+    let total = jobs.len() * opts.methods.len();
     let state = Mutex::new((0usize, Vec::with_capacity(total), sink));
     let next = Mutex::new(0usize);
-    let threads = opts.threads.max(1).min(total.max(1));
+    let threads = opts.threads.max(1).min(jobs.len().max(1));
     let t0 = std::time::Instant::now();
     std::thread::scope(|s| {
         for _ in 0..threads {
@@ -181,36 +195,42 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
                     *n += 1;
                     i
                 };
-                let Some((scene, e, m)) = jobs.get(i) else { break };
-                let row = run_episode(&base, scene, *e, opts.seed, m, &models);
-                let mut st = state.lock().unwrap();
-                st.0 += 1;
-                if let Some(f) = st.2.as_mut() {
-                    let _ = writeln!(f, "{}", serde_json::to_string(&row).unwrap_or_default());
+                let Some((scene, e)) = jobs.get(i) else { break };
+                let t_gen = std::time::Instant::now();
+                let episode = episode_scenario(&base, scene, *e, opts.seed);
+                let gen_s = t_gen.elapsed().as_secs_f64();
+                for m in &opts.methods {
+                    let mut row = run_episode(&episode, scene, *e, m, &models);
+                    row.episode_gen_s = gen_s;
+                    let mut st = state.lock().unwrap();
+                    st.0 += 1;
+                    if let Some(f) = st.2.as_mut() {
+                        let _ = writeln!(f, "{}", serde_json::to_string(&row).unwrap_or_default());
+                    }
+                    if progress {
+                        let el = t0.elapsed().as_secs_f64();
+                        let eta = el / st.0 as f64 * (total - st.0) as f64;
+                        eprintln!(
+                            "study: [{}/{total}] {} #{} {}: {}{} ({:.1} s plant in {:.2} s; ETA {:.0} s)",
+                            st.0,
+                            row.scene,
+                            row.episode,
+                            row.method,
+                            if row.completed {
+                                "completed"
+                            } else if row.collision {
+                                "COLLISION"
+                            } else {
+                                "not completed"
+                            },
+                            row.error.as_deref().map(|e| format!(" error: {e}")).unwrap_or_default(),
+                            row.plant_s,
+                            row.wall_s,
+                            eta
+                        );
+                    }
+                    st.1.push(row);
                 }
-                if progress {
-                    let el = t0.elapsed().as_secs_f64();
-                    let eta = el / st.0 as f64 * (total - st.0) as f64;
-                    eprintln!(
-                        "study: [{}/{total}] {} #{} {}: {}{} ({:.1} s plant in {:.2} s; ETA {:.0} s)",
-                        st.0,
-                        row.scene,
-                        row.episode,
-                        row.method,
-                        if row.completed {
-                            "completed"
-                        } else if row.collision {
-                            "COLLISION"
-                        } else {
-                            "not completed"
-                        },
-                        row.error.as_deref().map(|e| format!(" error: {e}")).unwrap_or_default(),
-                        row.plant_s,
-                        row.wall_s,
-                        eta
-                    );
-                }
-                st.1.push(row);
             });
         }
     });

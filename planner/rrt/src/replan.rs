@@ -114,6 +114,10 @@ pub struct Replanner {
     pub stats: ReplanStats,
     pub last_plan: PlanStats,
     status: PlanStatus,
+    /// Cycles to skip before the next attempt at the goal, and planning attempts in a row that
+    /// did not reach it.
+    backoff: u32,
+    misses: u32,
     /// Print one line per cycle to stderr (`DKRRT_PLAN_DEBUG` set at construction).
     pub debug: bool,
 }
@@ -141,6 +145,8 @@ impl Replanner {
             last_plan: PlanStats::default(),
             status: <PlanStatus as Zeroed>::zeroed(),
             debug: std::env::var_os("DKRRT_PLAN_DEBUG").is_some(),
+            backoff: 0,
+            misses: 0,
             cfg,
         }
     }
@@ -286,6 +292,16 @@ impl Replanner {
         if cur_valid && reaches_goal && !goal_changed {
             return false;
         }
+        // While a valid plan (an escape, or the rest) is kept and the goal is out of reach,
+        // retry the goal every few cycles only (backing off to `MAX_BACKOFF` cycles).
+        if self.backoff > 0 && !goal_changed && (cur_valid || cur_id == 0) {
+            self.backoff -= 1;
+            if cur_valid {
+                self.stats.fallbacks.keep += 1;
+                st.fallback = Fallback::Keep as u32;
+            }
+            return false;
+        }
         // The start of a new plan.
         let t_c = t_now + self.cfg.commit_s;
         let c_ns = (t_c * 1e9).round() as u64;
@@ -313,6 +329,8 @@ impl Replanner {
         if self.stats.first_plan_ms.is_none() && plan.is_some() {
             self.stats.first_plan_ms = Some(took as f64 * 1e-6);
         }
+        self.misses = if plan.is_some_and(|p| p.reach == Reach::Goal) { 0 } else { (self.misses + 1).min(8) };
+        self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
         if let Some(p) = plan {
             // The message the tracker will follow, checked once more before it goes out.
             let look = self.planner.cfg.lookahead_s;

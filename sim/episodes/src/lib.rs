@@ -118,6 +118,9 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
     let (n_threats, v_lo, v_hi) = params(&cfg.scene);
     let center = sc.sim.initial_q;
     let ql = model.limits();
+    // Why draws were rejected: [small motion, shooting missed, a threat reaches the arm at rest,
+    // too many background objects would].
+    let mut why = [0u32; 4];
     for attempt in 0..200u32 {
         // Start and goal: a real motion (≥ 0.5 rad on one of the first four joints).
         let start: [f64; NJ] = std::array::from_fn(|i| {
@@ -133,6 +136,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             (start[i] + d).clamp(ql.q_min[i] + 0.1, ql.q_max[i] - 0.1)
         });
         if (0..NJ).map(|i| (goal[i] - start[i]).abs()).fold(0.0, f64::max) < 0.5 {
+            why[0] += 1;
             continue;
         }
         let tr = straight(&start, &goal, &lim)?;
@@ -148,82 +152,61 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             });
             pool.truncate(4);
         }
-        let mut threats = Vec::new();
+        let mut threats: Vec<(usize, Threat)> = Vec::new();
         let mut ok = true;
         for _ in 0..n_threats.min(pool.len()) {
             let k = pool.swap_remove(rng.random_range(0..pool.len()));
-            let t_hit = (rng.random_range(0.3..0.75) * d).max(2.0).min(d);
-            let q_hit = tr.at(t_hit).p;
-            let q_next = tr.at(t_hit + 0.05).p;
-            let (mut caps, mut caps_next) = ([PosedCapsule::default(); NJ], [PosedCapsule::default(); NJ]);
-            poser.pose(&q_hit, &mut caps);
-            poser.pose(&q_next, &mut caps_next);
-            let link = rng.random_range(3..NJ);
-            let u = rng.random_range(0.4..1.0);
-            let at = |c: &PosedCapsule| {
-                Vector3::new(
-                    c.a[0] + u * (c.b[0] - c.a[0]),
-                    c.a[1] + u * (c.b[1] - c.a[1]),
-                    c.a[2] + u * (c.b[2] - c.a[2]),
-                )
-            };
-            let target = at(&caps[link]);
-            // Across the surface the link sweeps (normal to the link and to its motion), so the
-            // object crosses the straight motion once, far from the start and goal poses.
-            let c = caps[link];
-            let axis = Vector3::new(c.b[0] - c.a[0], c.b[1] - c.a[1], c.b[2] - c.a[2]);
-            let motion = at(&caps_next[link]) - target;
-            let mut normal = axis.cross(&motion);
-            if normal.norm() < 1e-9 {
-                normal = axis.cross(&Vector3::new(0.3, 0.5, 0.8));
-            }
-            let speed = rng.random_range(v_lo..v_hi);
-            let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
-            let dir = loop {
-                let v = Vector3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                );
-                if v.norm() <= 1.0 {
-                    break (normal.normalize() * sign + v * 0.35).normalize();
+            match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, &mut rng)? {
+                Some(t) => threats.push((k, t)),
+                None => {
+                    why[1] += 1;
+                    ok = false;
+                    break;
                 }
-            };
-            let v = dir * speed;
-            let miss = shoot(&mut scene, k, t_hit, &target, &v)?;
-            if miss > 1e-3 {
-                ok = false;
-                break;
             }
-            threats.push(Threat {
-                id: scene.debris[k].id,
-                t_hit_s: t_hit,
-                link,
-                point: [target.x - base[0], target.y - base[1], target.z - base[2]],
-                speed_mps: speed,
-                miss_m: miss,
-            });
         }
         if !ok {
             continue;
         }
-        // Background objects that would reach the arm resting at its start or goal are taken
-        // out of the episode (a threat that would is drawn again).
+        // Solvable by construction: a threat that reaches the arm resting at its start or goal
+        // is aimed again (up to 8 times); background objects that would are taken out of the
+        // episode (with their events).
         let mut removed = 0;
+        let mut re_aims = 0;
         let rest = loop {
             let (rest, id) = rest_clearance(&scene, &poser, &start, &goal, time_limit)?;
             if rest >= REST_CLEARANCE_M {
                 break Some(rest);
             }
-            if threats.iter().any(|t| t.id == id) || removed >= 8 {
+            if let Some(ti) = threats.iter().position(|t| t.1.id == id) {
+                re_aims += 1;
+                if re_aims > 8 {
+                    why[2] += 1;
+                    break None;
+                }
+                let k = threats[ti].0;
+                match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, &mut rng)? {
+                    Some(t) => threats[ti].1 = t,
+                    None => {
+                        why[1] += 1;
+                        break None;
+                    }
+                }
+                continue;
+            }
+            if removed >= 8 {
+                why[3] += 1;
                 break None;
             }
-            // With its events (a split fragment goes with its split).
             scene.events.retain(|e| match e {
                 dkrrt_debris::EventSpec::Impulse { id: i, .. } => *i != id,
                 dkrrt_debris::EventSpec::Split { id: i, new_id, .. } => *i != id && *new_id != id,
             });
             scene.debris.retain(|o| o.id != id);
+            // Indices of the threats after the removal.
+            for t in threats.iter_mut() {
+                t.0 = scene.debris.iter().position(|o| o.id == t.1.id).unwrap_or(t.0);
+            }
             removed += 1;
         };
         let Some(rest) = rest else { continue };
@@ -236,16 +219,81 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             scene,
             straight_duration_s: d,
             time_limit_s: time_limit,
-            threats,
+            threats: threats.into_iter().map(|t| t.1).collect(),
             rest_clearance_m: rest,
             attempts: attempt,
             removed_objects: removed,
         });
     }
     Err(format!(
-        "episode {:?} #{} (seed {}): no solvable draw in 200 attempts",
-        cfg.scene, cfg.index, cfg.seed
+        "episode {:?} #{} (seed {}): no solvable draw in 200 attempts (rejected: {} small motions, {} missed aims, \
+         {} threats reaching the arm at rest, {} with too many background objects doing so)",
+        cfg.scene, cfg.index, cfg.seed, why[0], why[1], why[2], why[3]
     ))
+}
+
+/// Aims object `k` at a point of the arm on the straight motion `tr` (see the crate docs);
+/// `None` when the shooting does not converge.
+fn aim(
+    scene: &mut Scene,
+    k: usize,
+    tr: &dkrrt_otg::Trajectory<NJ>,
+    poser: &ArmPoser,
+    (v_lo, v_hi): (f64, f64),
+    base: [f64; 3],
+    rng: &mut SmallRng,
+) -> Result<Option<Threat>, String> {
+    let d = tr.duration();
+    let t_hit = (rng.random_range(0.3..0.75) * d).max(2.0).min(d);
+    let q_hit = tr.at(t_hit).p;
+    let q_next = tr.at(t_hit + 0.05).p;
+    let (mut caps, mut caps_next) = ([PosedCapsule::default(); NJ], [PosedCapsule::default(); NJ]);
+    poser.pose(&q_hit, &mut caps);
+    poser.pose(&q_next, &mut caps_next);
+    let link = rng.random_range(3..NJ);
+    let u = rng.random_range(0.4..1.0);
+    let at = |c: &PosedCapsule| {
+        Vector3::new(
+            c.a[0] + u * (c.b[0] - c.a[0]),
+            c.a[1] + u * (c.b[1] - c.a[1]),
+            c.a[2] + u * (c.b[2] - c.a[2]),
+        )
+    };
+    let target = at(&caps[link]);
+    // Across the surface the link sweeps (normal to the link and to its motion), so the object
+    // crosses the straight motion once, away from the start and goal poses.
+    let c = caps[link];
+    let axis = Vector3::new(c.b[0] - c.a[0], c.b[1] - c.a[1], c.b[2] - c.a[2]);
+    let motion = at(&caps_next[link]) - target;
+    let mut normal = axis.cross(&motion);
+    if normal.norm() < 1e-9 {
+        normal = axis.cross(&Vector3::new(0.3, 0.5, 0.8));
+    }
+    let speed = rng.random_range(v_lo..v_hi);
+    let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
+    let dir = loop {
+        let v = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        if v.norm() <= 1.0 {
+            break (normal.normalize() * sign + v * 0.35).normalize();
+        }
+    };
+    let v = dir * speed;
+    let miss = shoot(scene, k, t_hit, &target, &v)?;
+    if miss > 1e-3 {
+        return Ok(None);
+    }
+    Ok(Some(Threat {
+        id: scene.debris[k].id,
+        t_hit_s: t_hit,
+        link,
+        point: [target.x - base[0], target.y - base[1], target.z - base[2]],
+        speed_mps: speed,
+        miss_m: miss,
+    }))
 }
 
 /// Sets object `k`'s initial state so that the true dynamics bring its centre to `target` (LVLH)
