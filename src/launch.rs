@@ -44,12 +44,21 @@ struct Proc {
     heartbeats: u64,
 }
 
-fn spawn(exe: &Path, name: &'static str, run: &str, scenario: &Path, stats: &Path) -> std::io::Result<Child> {
+fn spawn(
+    exe: &Path,
+    name: &'static str,
+    run: &str,
+    scenario: &Path,
+    stats: &Path,
+    planner: bool,
+) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
     if name == "sim" {
-        // Lockstep: plant time starts once the trajectory is out and (with debris, where
-        // the launcher starts a predictor) the observations have their reader.
-        cmd.arg(name).arg("--gate-trajectory").arg("--gate-predictor");
+        // Lockstep: plant time starts once the observations have their reader (with debris,
+        // where the launcher starts a predictor) and, with goto, once the trajectory is out;
+        // with the planner, it waits for each planning cycle instead.
+        cmd.arg(name).arg("--gate-predictor");
+        cmd.arg(if planner { "--gate-planner" } else { "--gate-trajectory" });
     } else {
         cmd.arg(name);
     }
@@ -151,6 +160,13 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     if let Some(p) = sc.predictor_model_path() {
         resolved.predictor.model = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
     }
+    // A resolved threat episode: its generated scene as a file, the scenario as plain data.
+    if let Some(scene) = &sc.scene_override {
+        let p = dir.join("scene.toml");
+        std::fs::write(&p, scene.to_toml()).map_err(|e| format!("write {}: {e}", p.display()))?;
+        resolved.debris.scene = p.display().to_string();
+        resolved.episode = None;
+    }
     let sc_path = dir.join("scenario.toml");
     std::fs::write(&sc_path, resolved.to_toml()).map_err(|e| format!("write {}: {e}", sc_path.display()))?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
@@ -160,12 +176,18 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let lim = dkrrt_msg::ContractLimits::symmetric(0.0, 0.0, 0.0);
 
     let mut procs: Vec<Proc> = Vec::new();
-    let names: &[&'static str] =
-        if sc.has_debris() { &["sim", "predictor", "tracker", "goto"] } else { &["sim", "tracker", "goto"] };
-    for &name in names {
+    let planner = sc.planner.method == "dk-rrt";
+    let source: &'static str = if planner { "planner" } else { "goto" };
+    let mut names: Vec<&'static str> = vec!["sim"];
+    if sc.has_debris() {
+        names.push("predictor");
+    }
+    names.extend(["tracker", source]);
+    for name in names {
         let stats = dir.join(format!("{name}.json"));
         let _ = std::fs::remove_file(&stats);
-        let child = spawn(&exe, name, &run, &sc_path, &stats).map_err(|e| format!("start {name}: {e}"))?;
+        let child =
+            spawn(&exe, name, &run, &sc_path, &stats, planner).map_err(|e| format!("start {name}: {e}"))?;
         println!("dkrrt: started {name} pid {}", child.id());
         procs.push(Proc { name, child, stats, exit: None, last_heartbeat_ns: None, heartbeats: 0 });
     }
@@ -272,8 +294,13 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
 
     let stats_of =
         |name: &str| procs.iter().find(|p| p.name == name).map_or(Value::Null, |p| read_stats(&p.stats));
-    let (sim, tr, goto, pred) =
-        (&stats_of("sim"), &stats_of("tracker"), &stats_of("goto"), &stats_of("predictor"));
+    let (sim, tr, goto, pred, plan) = (
+        &stats_of("sim"),
+        &stats_of("tracker"),
+        &stats_of("goto"),
+        &stats_of("predictor"),
+        &stats_of("planner"),
+    );
     let all_clean = procs.iter().all(|p| p.exit.is_some_and(|s| s.success()));
     // Any arm–debris contact is a collision: the run failed.
     let collision = sim.pointer("/debris/first_contact").filter(|c| !c.is_null()).map(|c| {
@@ -286,6 +313,10 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     });
     if let (Some(c), None) = (&collision, &failure) {
         failure = Some(c.clone());
+    }
+    // The planner's job is the goal: a run that never reached it did not do what was asked.
+    if planner && failure.is_none() && plan.get("goal_reached_s").is_none_or(Value::is_null) {
+        failure = Some("goal not reached".into());
     }
     let ok = failure.is_none() && all_clean;
     let lat = |k: &str, full: bool| {
@@ -335,11 +366,23 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "rejected_observations": pred.get("rejected_observations"),
             "fit_s": pred.get("fit_s"),
         }) } else { Value::Null },
+        "planner": if planner { json!({
+            "method": sc.planner.method,
+            "cycles": plan.get("cycles"),
+            "replans": plan.get("replans"),
+            "plan_ms": pick(plan.get("plan_ms").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "first_plan_ms": plan.get("first_plan_ms"),
+            "deadline_misses": plan.get("deadline_misses"),
+            "fallbacks": plan.get("fallbacks"),
+            "min_predicted_clearance_m": plan.get("min_predicted_clearance_m"),
+            "goal_reached_s": plan.get("goal_reached_s"),
+        }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
         "sim": sim,
         "tracker": tr,
         "goto": goto,
         "predictor_stats": pred,
+        "planner_stats": plan,
     });
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     std::fs::write(&opts.report, text).map_err(|e| format!("write report {}: {e}", opts.report.display()))?;
@@ -413,6 +456,31 @@ pub fn summary(r: &Value) -> String {
                 r["predictor"]["rejected_observations"]
             );
         }
+    }
+    if !r["planner"].is_null() {
+        let fb = &r["planner"]["fallbacks"];
+        s += &format!(
+            "  planner ({})  cycles {}  replans {}  plan ms p50 {} p99 {} max {}  deadline misses {}  fallbacks keep {} escape {} brake {}\n",
+            r["planner"]["method"].as_str().unwrap_or("?"),
+            r["planner"]["cycles"],
+            r["planner"]["replans"],
+            f("/planner/plan_ms/p50"),
+            f("/planner/plan_ms/p99"),
+            f("/planner/plan_ms/max"),
+            r["planner"]["deadline_misses"],
+            fb["keep"],
+            fb["escape"],
+            fb["brake"],
+        );
+        s += &format!(
+            "  planner              min predicted clearance {} m   goal reached at {} s\n",
+            r.pointer("/planner/min_predicted_clearance_m")
+                .and_then(Value::as_f64)
+                .map_or("n/a".into(), |v| format!("{v:.3}")),
+            r.pointer("/planner/goal_reached_s")
+                .and_then(Value::as_f64)
+                .map_or("never".into(), |v| format!("{v:.2}")),
+        );
     }
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
     for p in r["processes"].as_array().into_iter().flatten() {

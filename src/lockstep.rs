@@ -14,8 +14,9 @@ use dkrrt_msg::{ContractLimits, DebrisForecast, DebrisObservation, Trajectory, Z
 use dkrrt_otg::{KinState, Limits};
 use dkrrt_planner::goto::plan;
 use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
+use dkrrt_planner::replan::replanner;
 use dkrrt_predictor::{GateStats, Models};
-use dkrrt_rrt::{Fallbacks, PlannerConfig, ReplanConfig, Replanner, TrackerView};
+use dkrrt_rrt::{Fallbacks, Replanner, TrackerView};
 use dkrrt_rt::hist::Percentiles;
 use dkrrt_sim::core::SimCore;
 use dkrrt_sim::debris::DebrisStats;
@@ -105,33 +106,6 @@ pub struct Lockstep {
     pub goal_reached_s: Option<f64>,
     started: bool,
     clock: fn() -> u64,
-}
-
-/// The planner settings of a scenario.
-pub fn planner_configs(sc: &Scenario) -> (PlannerConfig, ReplanConfig) {
-    let p = &sc.planner;
-    let pc = PlannerConfig {
-        delta_m: p.delta_m,
-        lookahead_s: p.lookahead_s,
-        seed: p.seed,
-        ..PlannerConfig::default()
-    };
-    let rc = ReplanConfig {
-        cycle_s: 1.0 / p.rate_hz,
-        deadline_s: p.deadline_ms * 1e-3,
-        commit_s: p.commit_ms * 1e-3,
-        margin_m: p.margin_m,
-        iterations: p.iterations,
-        ..ReplanConfig::default()
-    };
-    (pc, rc)
-}
-
-/// The replanning core of a scenario.
-pub fn replanner(sc: &Scenario, model: dkrrt_model::ArmModel) -> Replanner {
-    let (pc, rc) = planner_configs(sc);
-    let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
-    Replanner::new(model, limits, pc, rc, sc.has_debris())
 }
 
 fn mono_ns() -> u64 {

@@ -66,6 +66,9 @@ enum Cmd {
         /// Lockstep with debris only: hold at tick 0 until the debris observations have a reader.
         #[arg(long)]
         gate_predictor: bool,
+        /// Lockstep with the DK-RRT planner: hold at each planner cycle until its status is out.
+        #[arg(long)]
+        gate_planner: bool,
     },
     /// The 1 kHz computed-torque tracker process.
     Tracker(ProcArgs),
@@ -75,6 +78,14 @@ enum Cmd {
         p: ProcArgs,
         /// Joint goal in rad, comma separated (default: the scenario's goal).
         #[arg(long, value_delimiter = ',', num_args = 6)]
+        goal: Option<Vec<f64>>,
+    },
+    /// The anytime DK-RRT planner: replans against the debris forecasts, publishes spliced trajectories.
+    Planner {
+        #[command(flatten)]
+        p: ProcArgs,
+        /// Joint goal in rad, comma separated (default: the scenario's goal).
+        #[arg(long, value_delimiter = ',', num_args = 6, allow_negative_numbers = true)]
         goal: Option<Vec<f64>>,
     },
     /// The debris predictor process: tracks debris observations, publishes Koopman forecasts (>= 50 Hz).
@@ -192,12 +203,21 @@ fn main() -> ExitCode {
             println!("report: {}", report.display());
             Ok(ok)
         }
-        Cmd::Sim { p, gate_trajectory, gate_predictor } => {
+        Cmd::Planner { p, goal } => {
+            let sc = scenario(&p.common)?;
+            let goal = goal.map(|g| std::array::from_fn(|i| g[i]));
+            dkrrt_planner::planner_process::run(&p.run, &sc, goal, p.stats.as_deref()).map(|_| true)
+        }
+        Cmd::Sim { p, gate_trajectory, gate_predictor, gate_planner } => {
             let sc = scenario(&p.common)?;
             dkrrt_sim::process::run(
                 &p.run,
                 &sc,
-                dkrrt_sim::process::Gate { trajectory: gate_trajectory, predictor: gate_predictor },
+                dkrrt_sim::process::Gate {
+                    trajectory: gate_trajectory,
+                    predictor: gate_predictor,
+                    planner: gate_planner,
+                },
                 p.stats.as_deref(),
             )
             .map(|_| true)

@@ -81,7 +81,7 @@ pub fn episode_scenario(
     seed: u64,
 ) -> Result<(Scenario, dkrrt_episodes::Episode), String> {
     let mut sc = base.clone();
-    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed });
+    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed, duration_s: None });
     let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
     Ok((sc, ep))
 }

@@ -5,11 +5,13 @@
 //! * [`predict`]: the debris predictor core of the `dkrrt predictor` process (models fitted
 //!   for the scenario, observation frames in, fixed-size forecasts out).
 //! * [`predictor_process`]: the `dkrrt predictor` process shell.
-//!
-//! The anytime DK-RRT planner will live here too.
+//! * [`replan`]: the scenario's DK-RRT replanning core (`dkrrt_rrt`), for both shells.
+//! * [`planner_process`]: the `dkrrt planner` process shell.
 
 pub mod goto;
+pub mod planner_process;
 pub mod predict;
 pub mod predictor_process;
 pub mod process;
 pub mod record_process;
+pub mod replan;

@@ -43,6 +43,10 @@ pub struct SimReport {
 pub struct Gate {
     pub trajectory: bool,
     pub predictor: bool,
+    /// Lockstep with the DK-RRT planner: at every planner cycle boundary (`planner.rate_hz`),
+    /// hold until the planner's status for that tick is out (its plan, if any, is published
+    /// before it), so plant time never runs ahead of the planner.
+    pub planner: bool,
 }
 
 /// Runs the simulator until the scenario's duration has elapsed in plant
@@ -81,6 +85,14 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         None => None,
     };
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
+    let mut plan_gate = if gate.planner && sc.run.mode == Mode::Lockstep {
+        Some(bus.subscriber::<PlanStatus>().map_err(|e| e.to_string())?)
+    } else {
+        None
+    };
+    let mut plan_status = <PlanStatus as Zeroed>::zeroed();
+    let plan_cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
+    let mut next_plan_ns = 0u64;
     let mut obs_gate = gate.predictor && obs_pub.is_some() && sc.run.mode == Mode::Lockstep;
 
     let period_ns = sc.period_ns();
@@ -122,7 +134,19 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
                 let t0 = mono_ns();
                 let limit = if k == 0 { first_timeout_ns } else { timeout_ns };
                 let mut spins = 0u32;
+                let stamp = k * period_ns;
+                let mut plan_due = plan_gate.is_some() && stamp >= next_plan_ns;
                 loop {
+                    if plan_due {
+                        if let Some(g) = plan_gate.as_mut() {
+                            if g.latest(&mut plan_status, &lim).map_err(|e| e.to_string())?
+                                && plan_status.header.stamp_ns >= stamp
+                            {
+                                plan_due = false;
+                                next_plan_ns = stamp - stamp % plan_cycle_ns + plan_cycle_ns;
+                            }
+                        }
+                    }
                     cmd_sub
                         .for_each(&lim, |c| plant.offer_command(c.state_seq, &c.tau))
                         .map_err(|e| e.to_string())?;
@@ -137,11 +161,14 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
                             bus.subscriber_count::<DebrisObservation>().map_err(|e| e.to_string())? == 0;
                     }
                     gated |= k == 0 && obs_gate;
+                    gated |= plan_due;
                     if (plant.has_command_for_current() && !gated) || signals::stop_requested() {
                         break;
                     }
                     if mono_ns() - t0 > limit {
-                        let waiting = if traj_gate.is_some() && k == 0 {
+                        let waiting = if plan_due {
+                            "no planner status for this cycle"
+                        } else if traj_gate.is_some() && k == 0 {
                             "no trajectory published"
                         } else if obs_gate && k == 0 {
                             "no reader of the debris observations (predictor)"

@@ -129,6 +129,9 @@ pub struct EpisodeCfg {
     pub scene: String,
     pub index: u64,
     pub seed: u64,
+    /// Run duration, s (default: the episode's time limit, 3 × the straight motion + 10 s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -529,6 +532,11 @@ impl Scenario {
         if let Some(e) = &self.episode {
             if !dkrrt_debris::SCENE_NAMES.contains(&e.scene.as_str()) {
                 return Err(c.fail("episode.scene", format!("{:?}", e.scene), "must be a named scene"));
+            }
+            if let Some(d) = e.duration_s {
+                if !(d > 0.0 && d <= 3600.0) {
+                    return Err(c.fail("episode.duration_s", d, "must be within (0, 3600] s"));
+                }
             }
         }
         Ok(())

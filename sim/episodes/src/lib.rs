@@ -382,6 +382,6 @@ pub fn resolve(sc: &mut Scenario) -> Result<Option<Episode>, String> {
     sc.debris.scene = cfg.scene.clone();
     sc.scene_override = Some(ep.scene.clone());
     sc.episode_time_limit_s = Some(ep.time_limit_s);
-    sc.run.duration_s = ep.time_limit_s;
+    sc.run.duration_s = cfg.duration_s.unwrap_or(ep.time_limit_s);
     Ok(Some(ep))
 }

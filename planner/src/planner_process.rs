@@ -1,0 +1,173 @@
+//! The `dkrrt planner` process shell: the DK-RRT replanning core ([`dkrrt_rrt::Replanner`])
+//! wired to the bus and a clock.
+//!
+//! Inputs: `dkrrt/robot_state` (now = the newest state's plant time, and where the arm is),
+//! `dkrrt/torque_command` (the tracker's mode and tracked trajectory), `dkrrt/debris_forecast`,
+//! `dkrrt/goal` (a new goal replaces the scenario's). Outputs: `dkrrt/trajectory` (a new plan
+//! starts `planner.commit_ms` after the state it was planned from: the tracker splices it in
+//! at its `start_ns`) and `dkrrt/plan_status` once per cycle.
+//!
+//! Cadence: realtime — cycles on absolute CLOCK_MONOTONIC deadlines at `planner.rate_hz`, each
+//! with the `planner.deadline_ms` compute deadline; lockstep — one cycle each time the plant
+//! clock (state stamps) passes the next cycle boundary (the simulator waits for that cycle's
+//! status, so plant time does not run ahead of the planner). Ends with the run or on
+//! SIGINT/SIGTERM.
+
+use std::path::Path;
+
+use dkrrt_config::arm::contract_limits;
+use dkrrt_config::{Mode, Scenario};
+use dkrrt_msg::bus::{Bus, HeartbeatTx};
+use dkrrt_msg::*;
+use dkrrt_rrt::{Fallbacks, TrackerView};
+
+use crate::replan::replanner;
+use dkrrt_rt::clock::{mono_ns, Pacer};
+use dkrrt_rt::hist::Percentiles;
+use dkrrt_rt::signals;
+
+/// What the planner reports at exit (JSON via `--stats`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlannerReport {
+    pub method: String,
+    pub cycles: u64,
+    /// Trajectories published.
+    pub replans: u64,
+    /// Compute time of the cycles that ran the planner, ms.
+    pub plan_ms: Percentiles,
+    pub first_plan_ms: Option<f64>,
+    /// Cycles whose compute time exceeded `planner.deadline_ms`.
+    pub deadline_misses: u64,
+    pub fallbacks: Fallbacks,
+    pub min_predicted_clearance_m: Option<f64>,
+    pub plans_rejected_by_final_check: u64,
+    /// Plant time the arm was first at the goal (every joint within the tolerance), s.
+    pub goal_reached_s: Option<f64>,
+    pub forecasts_received: u64,
+    pub rejected: u64,
+    pub stopped_by_signal: bool,
+}
+
+/// Runs the planner until the end of the run or a signal. `goal` overrides the scenario's.
+pub fn run(
+    run: &str,
+    sc: &Scenario,
+    goal: Option<[f64; NJ]>,
+    stats_path: Option<&Path>,
+) -> Result<PlannerReport, String> {
+    signals::install();
+    let model = sc.load_arm().map_err(|e| e.to_string())?;
+    let lim = contract_limits(&model);
+    let mut goal = goal.unwrap_or(sc.goal.q);
+    let mut g = <Goal as Zeroed>::zeroed();
+    g.q = goal;
+    g.validate(&lim).map_err(|e| format!("planner: goal rejected: {e}"))?;
+    let mut core = replanner(sc, model);
+    let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
+    let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
+    let mut fc_sub = bus.subscriber::<DebrisForecast>().map_err(|e| e.to_string())?;
+    let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
+    let mut traj_pub = bus.publisher::<Trajectory>(Source::Planner).map_err(|e| e.to_string())?;
+    let mut status_pub = bus.publisher::<PlanStatus>(Source::Planner).map_err(|e| e.to_string())?;
+    let mut hb = HeartbeatTx::new(&bus, Source::Planner, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
+    let mut state = <RobotState as Zeroed>::zeroed();
+    let mut cmd = <TorqueCommand as Zeroed>::zeroed();
+    let mut fc = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
+    let mut pacer = Pacer::new(cycle_ns, 0, 2_000_000);
+    let mut have_state = false;
+    let mut next_cycle_ns = 0u64;
+    let mut forecasts = 0u64;
+    let mut clock = mono_ns;
+    let lockstep = sc.run.mode == Mode::Lockstep;
+    let mut stopped_by_signal = false;
+    loop {
+        if !lockstep {
+            pacer.wait(signals::stop_requested);
+        }
+        if signals::stop_requested() {
+            stopped_by_signal = true;
+            break;
+        }
+        if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
+            have_state = true;
+        }
+        cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
+        goal_sub.for_each(&lim, |m| goal = m.q).map_err(|e| e.to_string())?;
+        let end = have_state && state.header.flags & FLAG_END_OF_RUN != 0;
+        let due = have_state && (!lockstep || state.header.stamp_ns >= next_cycle_ns);
+        if due && !end {
+            next_cycle_ns = state.header.stamp_ns - state.header.stamp_ns % cycle_ns + cycle_ns;
+            let new_fc = fc_sub.latest(&mut fc, &lim).map_err(|e| e.to_string())?;
+            forecasts += new_fc as u64;
+            let view = TrackerView {
+                mode: ControllerMode::from_u32(cmd.mode).unwrap_or(ControllerMode::Idle),
+                traj_id: cmd.traj_id as u64,
+            };
+            let d = core.step(
+                state.header.stamp_ns,
+                &state.q,
+                view,
+                new_fc.then_some(&*fc),
+                &goal,
+                &mut clock,
+                &mut out,
+            );
+            if d.publish {
+                traj_pub.publish(&mut out).map_err(|e| e.to_string())?;
+            }
+            let mut st = d.status;
+            status_pub.publish(&mut st).map_err(|e| e.to_string())?;
+        }
+        // Late subscribers (a restarted tracker) get the plan from history.
+        traj_pub.update_connections().map_err(|e| e.to_string())?;
+        hb.maybe_send(
+            mono_ns(),
+            false,
+            state.header.stamp_ns,
+            ProcessState::Running,
+            core.stats.cycles,
+            core.stats.deadline_misses,
+            state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
+            core.stats.fallbacks.brake,
+        )
+        .map_err(|e| e.to_string())?;
+        if end {
+            break;
+        }
+        if lockstep && !due {
+            std::hint::spin_loop();
+            std::thread::yield_now();
+        }
+    }
+    let _ = hb.maybe_send(
+        mono_ns(),
+        true,
+        state.header.stamp_ns,
+        ProcessState::Stopping,
+        core.stats.cycles,
+        0,
+        0,
+        0,
+    );
+    let s = core.stats;
+    let rep = PlannerReport {
+        method: sc.planner.method.clone(),
+        cycles: s.cycles,
+        replans: s.replans,
+        plan_ms: core.plan_ms(),
+        first_plan_ms: s.first_plan_ms,
+        deadline_misses: s.deadline_misses,
+        fallbacks: s.fallbacks,
+        min_predicted_clearance_m: s.min_predicted_clearance_m,
+        plans_rejected_by_final_check: s.plans_rejected_by_final_check,
+        goal_reached_s: s.goal_reached_s,
+        forecasts_received: forecasts,
+        rejected: state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
+        stopped_by_signal,
+    };
+    dkrrt_rt::write_stats("planner", stats_path, &rep)?;
+    Ok(rep)
+}
