@@ -37,3 +37,203 @@ fn free_space_gives_the_direct_motion_at_once() {
     assert_eq!(out.start_ns, 1_000_000_000);
     assert!((plan.arrival - 1.0 - out.duration_s).abs() < 1e-9);
 }
+
+/// A world with one obstacle track: `shape` at `p(t) = p0 + v·t` (identity attitude) with σ.
+fn moving(shape: DebrisShape, p0: [f64; 3], v: [f64; 3], t0: f64, t1: f64, sigma: f64) -> WorldInTime {
+    let mut w = WorldInTime::new(0.05);
+    let n = ((t1 - t0) / 0.1).ceil() as usize;
+    let poses: Vec<TimedPose> = (0..=n)
+        .map(|k| {
+            let t = t0 + k as f64 * 0.1;
+            TimedPose {
+                t,
+                p: [p0[0] + v[0] * t, p0[1] + v[1] * t, p0[2] + v[2] * t],
+                q: [1.0, 0.0, 0.0, 0.0],
+                sigma,
+                sigma_pos: sigma,
+            }
+        })
+        .collect();
+    w.push_track(1, shape, &poses, After::Hold).unwrap();
+    w
+}
+
+/// The point of the straight motion's arm at its middle, base frame.
+fn straight_mid_point() -> ([f64; 3], f64) {
+    let p = planner();
+    let lim = *p.limits();
+    let tr = dkrrt_otg::Trajectory::calculate(
+        &KinState::rest(START),
+        &KinState::rest(GOAL),
+        &lim,
+        &Default::default(),
+    )
+    .unwrap();
+    let t = 0.5 * tr.duration();
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&tr.at(t).p, &mut caps);
+    (caps[4].centre, t)
+}
+
+/// Every 1 ms of the message: the arm's clearance to the world (no sampling argument needed).
+fn dense_min_clearance(w: &WorldInTime, tr: &Trajectory, t_end: f64) -> f64 {
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    ch.cap = 10.0;
+    let t0 = tr.start_ns as f64 * 1e-9;
+    let mut m = f64::INFINITY;
+    let mut t = t0;
+    while t <= t_end {
+        let q = tr.sample(t - t0).p;
+        m = m.min(ch.clearance_at(w, &q, t, 0.0, f64::NEG_INFINITY));
+        t += 1e-3;
+    }
+    m
+}
+
+#[test]
+fn a_crossing_obstacle_is_avoided_and_the_plan_is_clear_at_every_millisecond() {
+    // A sphere crosses the straight motion's path at its middle, at that time.
+    let (mid, t_mid) = straight_mid_point();
+    let v = [0.0, 0.0, 0.6];
+    let t0 = 0.0;
+    let p0 = [mid[0] - v[0] * t_mid, mid[1] - v[1] * t_mid, mid[2] - v[2] * t_mid];
+    let w = moving(DebrisShape::sphere(0.25), p0, v, t0, 30.0, 0.02);
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    // The straight motion itself is in collision.
+    let mut straight = <Trajectory as Zeroed>::zeroed();
+    let mut b = dkrrt_rrt::build::Builder::new(&mut straight, 1, 0);
+    b.otg(
+        &dkrrt_otg::Trajectory::calculate(
+            &KinState::rest(START),
+            &KinState::rest(GOAL),
+            &limits(),
+            &Default::default(),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    b.finish();
+    assert!(dense_min_clearance(&w, &straight, 20.0) < 0.0, "the test obstacle must hit the straight motion");
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let plan = p.plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
+    assert_eq!(plan.reach, Reach::Goal);
+    let look = p.cfg.lookahead_s;
+    let (ok, _) = check_message(&mut p, &w, &out, t0, t0 + look);
+    assert!(ok);
+    // Within the look-ahead, the sampled checks' guarantee holds at every millisecond.
+    let m = dense_min_clearance(&w, &out, t0 + look);
+    assert!(m >= 0.0, "clearance {m} at 1 ms resolution");
+    let end = out.sample(out.duration_s).p;
+    assert!((0..NJ).all(|j| (end[j] - GOAL[j]).abs() < 1e-9));
+}
+
+#[test]
+fn a_thin_fast_rod_does_not_slip_between_samples() {
+    // A 2 cm rod (capsule along z) flies along x at 8 m/s through link 4 of the arm at rest.
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&START, &mut caps);
+    let c = caps[4].centre;
+    // Across the link, perpendicular to it and to the rod's own axis (z).
+    let (a, b) = (caps[4].a, caps[4].b);
+    let ax = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let dir = [ax[1], -ax[0], 0.0];
+    let n = (dir[0] * dir[0] + dir[1] * dir[1]).sqrt();
+    let v = [8.0 * dir[0] / n, 8.0 * dir[1] / n, 0.0];
+    let t_cross = 1.05;
+    let p0 = [c[0] - v[0] * t_cross, c[1] - v[1] * t_cross, c[2]];
+    let mut w = moving(DebrisShape::capsule(0.3, 0.01), p0, v, 0.0, 3.0, 0.0);
+    w.set_margin(0.0);
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    // Naive fixed sampling every 0.1 s misses it: the rod is > 0.4 m away at every sample.
+    let naive_clear = (0..=30).all(|k| ch.clearance_at(&w, &START, k as f64 * 0.1, 0.0, 0.0) >= 0.0);
+    assert!(naive_clear, "the test must be one that coarse sampling misses");
+    // The checker's spacing follows the rod's speed and finds the contact.
+    let r = ch.check(&w, 0.0, 3.0, 3.0, false, |_| START);
+    assert!(!r.ok, "{r:?}");
+    assert!((r.t_fail - t_cross).abs() < 0.1, "{r:?}");
+    // The same rod passing 5 cm above the link's capsule (beyond δ/2) is not reported.
+    let top = a[2].max(b[2]) + caps[4].r;
+    let z = top + 0.05 + 0.01 + 0.3 - c[2];
+    let mut w2 = moving(DebrisShape::capsule(0.3, 0.01), [p0[0], p0[1], p0[2] + z], v, 0.0, 3.0, 0.0);
+    w2.set_margin(0.0);
+    let r2 = ch.check(&w2, 0.0, 3.0, 3.0, false, |_| START);
+    assert!(r2.ok, "{r2:?}");
+}
+
+#[test]
+fn an_unavoidable_obstacle_gives_no_plan() {
+    // A huge sphere sits on the start configuration: nothing from here is clear.
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&START, &mut caps);
+    let w = moving(DebrisShape::sphere(0.6), caps[3].centre, [0.0; 3], 0.0, 30.0, 0.0);
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+    assert!(p.plan(&req, &w, 200, || true, 3, &mut out).is_none());
+    assert_eq!(out.traj_id, 0, "nothing written");
+}
+
+#[test]
+fn plans_are_deterministic_for_a_seed() {
+    let (mid, t_mid) = straight_mid_point();
+    let v = [0.0, 0.5, 0.0];
+    let p0 = [mid[0], mid[1] - v[1] * t_mid, mid[2]];
+    let w = moving(DebrisShape::cuboid([0.3, 0.2, 0.05], [0.0; 3]), p0, v, 0.0, 30.0, 0.02);
+    let run = || {
+        let mut p = planner();
+        let mut out = <Trajectory as Zeroed>::zeroed();
+        let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+        let plan = p.plan(&req, &w, 500, || true, 4, &mut out);
+        (plan, out)
+    };
+    let (a, ta) = run();
+    let (b, tb) = run();
+    assert_eq!(a, b);
+    assert_eq!(ta, tb);
+    assert!(a.is_some());
+}
+
+#[test]
+fn world_interpolates_and_extrapolates_past_the_horizon() {
+    use dkrrt_msg::{DebrisForecast, ForecastStep};
+    let mut f = <DebrisForecast as Zeroed>::zeroed();
+    f.count = 1;
+    f.steps = 4;
+    f.dt_s = 0.1;
+    f.t0_ns = 2_000_000_000;
+    f.tracks[0].id = 9;
+    f.tracks[0].bounding_radius = 0.5;
+    f.tracks[0].shape = DebrisShape::capsule(0.45, 0.05);
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    for k in 0..4 {
+        let s = 0.1 * (k + 1) as f64;
+        // 1 m/s along x; a quarter turn about z over the first 0.1 s only.
+        let q = if k == 0 { [1.0, 0.0, 0.0, 0.0] } else { [h, 0.0, 0.0, h] };
+        f.tracks[0].steps[k] = ForecastStep {
+            p: [s, 0.0, 0.0],
+            q,
+            sigma_m: 0.01 * (k + 1) as f64,
+            sigma_pos_m: 0.005 * (k + 1) as f64,
+        };
+    }
+    let mut w = WorldInTime::new(0.0);
+    w.load_forecast(&f);
+    assert_eq!(w.len(), 1);
+    // Between steps: linear position, slerp attitude (half of the quarter turn), σ linear.
+    let (p, q, s, sp, sphere) = w.pose_at(0, 2.15);
+    assert!((p[0] - 0.15).abs() < 1e-12 && !sphere);
+    assert!((q[0] - (std::f64::consts::PI / 8.0).cos()).abs() < 1e-12, "{q:?}");
+    assert!((s - 0.015).abs() < 1e-12 && (sp - 0.0075).abs() < 1e-12);
+    // Past the horizon (2.4 s): the centre goes on at the last velocity, the shape becomes its
+    // bounding sphere, σ grows at least at the last step's rate.
+    let (p, _, s, sp, sphere) = w.pose_at(0, 3.4);
+    assert!((p[0] - 1.4).abs() < 1e-9, "{p:?}");
+    assert!(sphere);
+    assert!(s >= 0.04 + 0.1 - 1e-12 && sp >= 0.02 + 0.1 - 1e-12, "{s} {sp}");
+    // The speed bound covers the motion: 1 m/s + the turn's ω·R + σ growth.
+    assert!(w.max_speed() >= 1.0 + (std::f64::consts::FRAC_PI_2 / 0.1) * 0.5);
+}

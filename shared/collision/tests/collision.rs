@@ -47,7 +47,8 @@ fn known_distances_for_every_kind() {
     assert!((r.distance(&c) - 0.85).abs() < 1e-12, "{}", r.distance(&c));
     // Box half extents 0.2 at z = 1: face at z = 0.8, gap 0.8 - 0.1.
     let b = Obstacle::from_desc(3, &DebrisShape::cuboid([0.2; 3], [0.0; 3]), 0.0, &[0.5, 0.0, 1.0], &ID, 0.0);
-    assert!((b.distance(&c) - 0.7).abs() < 1e-9, "{}", b.distance(&c));
+    // GJK (boxes) converges to ~1e-8.
+    assert!((b.distance(&c) - 0.7).abs() < 1e-7, "{}", b.distance(&c));
     // Box with a body offset of -0.3 m in z: the face comes 0.3 m closer.
     let b = Obstacle::from_desc(
         3,
@@ -57,7 +58,7 @@ fn known_distances_for_every_kind() {
         &ID,
         0.0,
     );
-    assert!((b.distance(&c) - 0.4).abs() < 1e-9, "{}", b.distance(&c));
+    assert!((b.distance(&c) - 0.4).abs() < 1e-7, "{}", b.distance(&c));
     // Unknown shape: the bounding sphere.
     let u = Obstacle::from_desc(4, &DebrisShape::default(), 0.3, &[0.5, 0.0, 1.0], &ID, 0.0);
     assert!((u.distance(&c) - 0.6).abs() < 1e-12);
@@ -181,7 +182,12 @@ fn proximity_and_clearance_agree_with_all_pairs() {
         } else {
             assert!(cl < 0.0);
         }
-        assert_eq!(clearance(&caps, &obs, -1.0, 0.25), brute.min(0.25).max(cl.min(0.25)));
+        let capped = clearance(&caps, &obs, -1.0, 0.25);
+        if brute >= -1.0 {
+            assert!((capped - brute.min(0.25)).abs() < 1e-12, "{capped} vs {brute}");
+        } else {
+            assert!(capped < -1.0);
+        }
     }
 }
 
@@ -189,7 +195,8 @@ fn proximity_and_clearance_agree_with_all_pairs() {
 fn posing_and_checking_allocate_nothing() {
     let poser = ArmPoser::new(ArmModel::default_arm());
     let mut rng = SmallRng::seed_from_u64(12);
-    let mut obs = scene(&mut rng, 31);
+    let mut obs = Vec::with_capacity(32);
+    obs.extend(scene(&mut rng, 31));
     let hull = SharedShape::convex_hull(&[
         PVec::new(0.0, 0.0, 0.0),
         PVec::new(0.3, 0.0, 0.0),

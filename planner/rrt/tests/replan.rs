@@ -1,0 +1,168 @@
+//! The replanning loop: splices at the exact state of the active plan, keeps a valid plan, never
+//! publishes an unchecked plan, brakes when nothing is valid, allocates nothing per cycle.
+
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::{ControllerMode, DebrisForecast, DebrisShape, Fallback, ForecastStep, Trajectory, Zeroed};
+use dkrrt_otg::Limits;
+use dkrrt_rrt::*;
+use dkrrt_rt::alloc_count::{count, CountingAlloc};
+
+#[global_allocator]
+static ALLOC: CountingAlloc = CountingAlloc;
+
+const START: [f64; NJ] = [0.0, -0.5, 1.0, 0.0, 0.5, 0.0];
+const GOAL: [f64; NJ] = [0.35, -0.2, 0.7, 0.3, 0.2, 0.4];
+
+fn limits() -> Limits<NJ> {
+    Limits {
+        v_max: [0.1, 0.1, 0.1, 0.18, 0.18, 0.18],
+        a_max: [0.2, 0.2, 0.2, 0.4, 0.4, 0.4],
+        j_max: [1.0, 1.0, 1.0, 2.0, 2.0, 2.0],
+    }
+}
+
+fn replanner() -> Replanner {
+    let rc = ReplanConfig { forecast_wait_s: 0.0, ..ReplanConfig::default() };
+    Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true)
+}
+
+/// A forecast of one sphere at `p` (static) from plant time `t0_ns`.
+fn forecast(t0_ns: u64, p: [f64; 3], r: f64) -> Box<DebrisForecast> {
+    let mut f = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    f.count = 1;
+    f.steps = 40;
+    f.dt_s = 0.1;
+    f.t0_ns = t0_ns;
+    f.tracks[0].id = 3;
+    f.tracks[0].bounding_radius = r;
+    f.tracks[0].shape = DebrisShape::sphere(r);
+    for k in 0..40 {
+        f.tracks[0].steps[k] = ForecastStep { p, q: [1.0, 0.0, 0.0, 0.0], sigma_m: 0.01, sigma_pos_m: 0.01 };
+    }
+    f
+}
+
+fn clock() -> impl FnMut() -> u64 {
+    let mut t = 0u64;
+    move || {
+        t += 1000;
+        t
+    }
+}
+
+#[test]
+fn a_new_plan_continues_the_active_one_exactly_at_the_commit_time() {
+    let mut rp = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    let d = rp.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out);
+    assert!(d.publish);
+    assert_eq!(d.status.fallback, Fallback::None as u32);
+    let first = *out;
+    assert_eq!(first.start_ns, 60_000_000, "plans start at now + commit");
+    // 2 s later, mid-motion, an obstacle appears on the rest of the path: replan.
+    let now = 2_000_000_000u64;
+    let q_now = first.sample(first.time_of(now)).p;
+    let mut blocked = forecast(now, [0.0; 3], 0.05);
+    {
+        // Put the sphere on the arm's path a little later.
+        let later = first.sample(first.time_of(now + 3_500_000_000)).p;
+        let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+        let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+        poser.pose(&later, &mut caps);
+        for s in blocked.tracks[0].steps.iter_mut() {
+            s.p = caps[5].centre;
+        }
+    }
+    let track = TrackerView { mode: ControllerMode::Track, traj_id: first.traj_id };
+    let d = rp.step(now, &q_now, track, Some(&blocked), &GOAL, &mut clk, &mut out);
+    assert!(d.publish, "{:?}", d.status);
+    assert_eq!(d.status.fallback, Fallback::None as u32, "{:?}", d.status);
+    let second = *out;
+    assert!(second.traj_id > first.traj_id);
+    assert_eq!(second.start_ns, now + 60_000_000);
+    // Exact splice: p, v, a of the new plan at its start = the old plan's at that instant.
+    let a = first.sample(first.time_of(second.start_ns));
+    let b = second.sample(0.0);
+    for j in 0..NJ {
+        assert!((a.p[j] - b.p[j]).abs() < 1e-12, "p[{j}]");
+        assert!((a.v[j] - b.v[j]).abs() < 1e-12, "v[{j}]");
+        assert!((a.a[j] - b.a[j]).abs() < 1e-12, "a[{j}]");
+    }
+    // Whatever was published was checked against the forecast it was planned on.
+    let mut p = Planner::new(ArmModel::default_arm(), limits(), PlannerConfig::default());
+    let mut w = WorldInTime::new(0.05);
+    w.load_forecast(&blocked);
+    let t0 = second.start_ns as f64 * 1e-9;
+    assert!(check_message(&mut p, &w, &second, t0, t0 + 5.0).0);
+}
+
+#[test]
+fn a_valid_plan_is_kept_and_nothing_valid_means_a_brake_never_an_unchecked_plan() {
+    let mut rp = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    let d = rp.step(
+        0,
+        &START,
+        TrackerView { mode: ControllerMode::Idle, traj_id: 0 },
+        Some(&far),
+        &GOAL,
+        &mut clk,
+        &mut out,
+    );
+    assert!(d.publish);
+    let first = *out;
+    let track = TrackerView { mode: ControllerMode::Track, traj_id: first.traj_id };
+    // Nothing changed: kept, nothing published.
+    let now = 1_000_000_000u64;
+    let q_now = first.sample(first.time_of(now)).p;
+    let d = rp.step(now, &q_now, track, Some(&far), &GOAL, &mut clk, &mut out);
+    assert!(!d.publish);
+    assert_eq!(rp.current().traj_id, first.traj_id);
+    // A sphere swallowing the whole arm: no plan, the current is invalid → a brake from the
+    // commit state, which decelerates to rest.
+    let now = 2_000_000_000u64;
+    let q_now = first.sample(first.time_of(now)).p;
+    let huge = forecast(now, [0.5, 0.5, 0.5], 6.0);
+    let d = rp.step(now, &q_now, track, Some(&huge), &GOAL, &mut clk, &mut out);
+    assert!(d.publish);
+    assert_eq!(d.status.fallback, Fallback::Brake as u32);
+    assert_eq!(rp.stats.fallbacks.brake, 1);
+    let brake = *out;
+    let s0 = brake.sample(0.0);
+    let a = first.sample(first.time_of(brake.start_ns));
+    for j in 0..NJ {
+        assert!((a.v[j] - s0.v[j]).abs() < 1e-12 && (a.p[j] - s0.p[j]).abs() < 1e-12);
+    }
+    let end = brake.sample(brake.duration_s);
+    assert!(end.v.iter().all(|v| v.abs() < 1e-9) && end.a.iter().all(|a| a.abs() < 1e-9));
+    assert!(brake.duration_s < 2.0);
+    // At rest with nothing valid: hold (nothing published), counted.
+    let view = TrackerView { mode: ControllerMode::Hold, traj_id: 0 };
+    let d = rp.step(now + 3_000_000_000, &end.p, view, Some(&huge), &GOAL, &mut clk, &mut out);
+    assert!(!d.publish);
+    assert_eq!(d.status.fallback, Fallback::Brake as u32);
+}
+
+#[test]
+fn a_planning_cycle_allocates_nothing_after_warm_up() {
+    let mut rp = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let near = forecast(0, [1.5, 1.0, 0.8], 0.3);
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    rp.step(0, &START, idle, Some(&near), &GOAL, &mut clk, &mut out);
+    let (_, st) = count(|| {
+        for k in 1..40u64 {
+            // Each cycle plans from rest again (the tracker is idle), with a new forecast.
+            let f = &near;
+            rp.step(k * 100_000_000, &START, idle, Some(f), &GOAL, &mut clk, &mut out);
+        }
+    });
+    assert!(rp.stats.cycles >= 40);
+    assert_eq!((st.allocs, st.reallocs), (0, 0), "{st:?}");
+}
