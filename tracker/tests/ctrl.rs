@@ -213,3 +213,89 @@ fn tick_and_set_trajectory_allocate_nothing() {
     });
     assert_eq!(s.allocs, 0, "{s:?}");
 }
+
+/// A plan spliced into `base` at plant time `at_ns` from `base`'s exact state there: to
+/// `goal` at rest (or, with `jump`, from a state off by `jump` rad in joint 0).
+fn spliced(base: &Trajectory, at_ns: u64, goal: &[f64; NJ], id: u64, jump: f64) -> Box<Trajectory> {
+    let s = base.sample(base.time_of(at_ns));
+    let mut from = KinState { p: s.p, v: s.v, a: s.a };
+    from.p[0] += jump;
+    let lim = dkrrt_otg::Limits {
+        v_max: [0.1, 0.1, 0.1, 0.18, 0.18, 0.18],
+        a_max: [0.2, 0.2, 0.2, 0.4, 0.4, 0.4],
+        j_max: [1.0, 1.0, 1.0, 2.0, 2.0, 2.0],
+    };
+    let mut t = Box::new(<Trajectory as Zeroed>::zeroed());
+    dkrrt_planner::goto::plan(&from, goal, &lim, 1e-3, id, at_ns, &mut t).unwrap();
+    t
+}
+
+#[test]
+fn a_trajectory_starting_ahead_is_queued_and_spliced_in_at_its_start() {
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj).expect("accepted");
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    // At 1.5 s: a new plan to another goal, starting 60 ms ahead from the exact reference.
+    let now_ns = 1_500_000_000;
+    let goal = [0.2, -0.4, 0.9, 0.1, 0.4, 0.1];
+    let next = spliced(&l.traj, now_ns + 60_000_000, &goal, 2, 0.0);
+    assert!(l.ctrl.set_trajectory(&next).is_none(), "queued, not switched");
+    assert_eq!(l.ctrl.queued_traj_id(), 2);
+    assert_eq!(l.ctrl.active_traj_id(), 1);
+    let mut spliced_at = None;
+    for _ in 0..80 {
+        let out = l.tick(true);
+        if let Some(e) = out.event {
+            assert_eq!(e.reason, Reason::Splice);
+            spliced_at = Some(e.plant_ns);
+        }
+    }
+    assert_eq!(spliced_at, Some(now_ns + 60_000_000), "takes over exactly at its start");
+    assert_eq!(l.ctrl.active_traj_id(), 2);
+    assert_eq!(l.ctrl.stats.splices_taken, 1);
+    // The arm follows through the splice with the error of ordinary tracking, then arrives.
+    let n = (next.duration_s * 1000.0) as usize + 300;
+    for _ in 0..n {
+        l.tick(true);
+    }
+    let (q, _) = l.plant.true_state();
+    for j in 0..NJ {
+        assert!((q[j] - goal[j]).abs() < 1e-5, "joint {j}: {}", q[j]);
+    }
+    assert!(l.ctrl.stats.track.max_abs < 1e-5, "{}", l.ctrl.stats.track.max_abs);
+    assert_eq!(l.ctrl.stats.safe_hold_entries, 0);
+}
+
+#[test]
+fn a_splice_that_does_not_continue_the_reference_is_rejected_and_the_arm_brakes() {
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj).expect("accepted");
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    let now_ns = 1_500_000_000;
+    let goal = [0.2, -0.4, 0.9, 0.1, 0.4, 0.1];
+    // 1 mrad off in position: beyond the splice tolerance while moving.
+    let bad = spliced(&l.traj, now_ns + 60_000_000, &goal, 2, 1e-3);
+    assert!(l.ctrl.set_trajectory(&bad).is_none());
+    let mut reasons = Vec::new();
+    for _ in 0..2000 {
+        if let Some(e) = l.tick(true).event {
+            reasons.push(e.reason);
+        }
+    }
+    assert_eq!(reasons.first(), Some(&Reason::SpliceRejected), "{reasons:?}");
+    assert!(reasons.contains(&Reason::BrakeComplete), "{reasons:?}");
+    assert_eq!(l.ctrl.stats.splices_taken, 0);
+    assert_eq!(l.ctrl.stats.trajectories_rejected, 1);
+    // The arm never followed the rejected plan: it stopped on the old path, at rest.
+    let (q, qd) = l.plant.true_state();
+    assert!(qd.iter().all(|v| v.abs() < 1e-4), "{qd:?}");
+    let on_old = l.traj.sample(l.traj.time_of(now_ns + 60_000_000)).p;
+    assert!((0..NJ).all(|j| (q[j] - on_old[j]).abs() < 0.05), "{q:?} vs {on_old:?}");
+    assert!((0..NJ).any(|j| (q[j] - goal[j]).abs() > 0.05));
+}

@@ -209,7 +209,25 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             }
             removed += 1;
         };
-        let Some(rest) = rest else { continue };
+        let Some(mut rest) = rest else { continue };
+        if removed > 0 {
+            // Removing objects re-orders the scene's perturbation streams: aim the threats
+            // once more at their points (a millimetre correction), then check the rests again.
+            let mut on_target = true;
+            for (k, t) in threats.iter_mut() {
+                let d = &scene.debris[*k];
+                let v = Vector3::from(d.v);
+                let target = Vector3::new(t.point[0] + base[0], t.point[1] + base[1], t.point[2] + base[2]);
+                t.miss_m = shoot(&mut scene, *k, t.t_hit_s, &target, &v)?;
+                on_target &= t.miss_m <= 1e-3;
+            }
+            let (r, _) = rest_clearance(&scene, &poser, &start, &goal, time_limit)?;
+            if !on_target || r < REST_CLEARANCE_M {
+                why[2] += 1;
+                continue;
+            }
+            rest = r;
+        }
         return Ok(Episode {
             scene_name: cfg.scene.clone(),
             index: cfg.index,
@@ -282,6 +300,8 @@ fn aim(
         }
     };
     let v = dir * speed;
+    let p0 = target - v * t_hit;
+    scene.debris[k].p = [p0.x, p0.y, p0.z];
     let miss = shoot(scene, k, t_hit, &target, &v)?;
     if miss > 1e-3 {
         return Ok(None);

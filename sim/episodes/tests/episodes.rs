@@ -1,0 +1,118 @@
+//! Threat episodes: deterministic, a real motion, threats on target, solvable by construction,
+//! and the straight motion mostly hit.
+
+use dkrrt_collision::{proximity, ArmPoser, ContactPair, Obstacle, PosedCapsule};
+use dkrrt_config::{EpisodeCfg, Scenario};
+use dkrrt_debris::DebrisWorld;
+use dkrrt_episodes::{generate, resolve, straight, Episode, REST_CLEARANCE_M};
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_otg::Limits;
+
+fn ep(scene: &str, index: u64) -> Episode {
+    let sc = Scenario::default_scenario();
+    generate(&EpisodeCfg { scene: scene.into(), index, seed: 77, duration_s: None }, &sc).unwrap()
+}
+
+/// The smallest distance between the debris and the arm posed by `q_of(t)`, every 10 ms to
+/// `t_end` (true shapes).
+fn min_distance(e: &Episode, t_end: f64, q_of: impl Fn(f64) -> [f64; NJ]) -> f64 {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let mut w = DebrisWorld::new(&e.scene).unwrap();
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut best = f64::INFINITY;
+    let mut t = 0.0;
+    while t <= t_end {
+        poser.pose(&q_of(t), &mut caps);
+        let obs: Vec<Obstacle> = w
+            .debris()
+            .iter()
+            .map(|d| {
+                let q = d.state.q.quaternion();
+                Obstacle::from_shape(
+                    d.id,
+                    d.props.shape.clone(),
+                    d.props.bounding_radius,
+                    &[d.state.p.x, d.state.p.y, d.state.p.z],
+                    &[q.w, q.i, q.j, q.k],
+                )
+            })
+            .collect();
+        best = best.min(proximity(&caps, &obs, 0.0, &mut [ContactPair::default(); 1]).min_distance);
+        w.step(0.01);
+        t += 0.01;
+    }
+    best
+}
+
+#[test]
+fn episodes_are_deterministic_real_motions_with_threats_on_target() {
+    for scene in dkrrt_debris::SCENE_NAMES {
+        let a = ep(scene, 3);
+        let b = ep(scene, 3);
+        assert_eq!((a.start, a.goal, a.time_limit_s), (b.start, b.goal, b.time_limit_s));
+        assert_eq!(a.scene, b.scene, "{scene}: same debris");
+        assert!((0..NJ).any(|i| (a.goal[i] - a.start[i]).abs() >= 0.5), "{scene}: a real motion");
+        assert!((a.time_limit_s - (3.0 * a.straight_duration_s + 10.0)).abs() < 1e-9);
+        assert!(!a.threats.is_empty());
+        // Each threat's centre is where it was aimed, when it was aimed (true dynamics).
+        for t in &a.threats {
+            let mut w = DebrisWorld::new(&a.scene).unwrap();
+            let n = (t.t_hit_s / 0.01).round() as usize;
+            for _ in 0..n {
+                w.step(t.t_hit_s / n as f64);
+            }
+            let d = &w.debris()[w.index_of(t.id).unwrap()];
+            let miss = (d.state.p - nalgebra::Vector3::from(t.point)).norm();
+            assert!(miss < 2e-3, "{scene}: threat {} misses its aim by {miss} m", t.id);
+        }
+        let other = ep(scene, 4);
+        assert_ne!(a.start, other.start, "{scene}: episodes differ");
+    }
+}
+
+#[test]
+fn every_episode_is_solvable_by_waiting_at_the_start_or_the_goal() {
+    for scene in dkrrt_debris::SCENE_NAMES {
+        for i in 0..2 {
+            let e = ep(scene, i);
+            let (s, g) = (e.start, e.goal);
+            let at_start = min_distance(&e, e.time_limit_s, |_| s);
+            let at_goal = min_distance(&e, e.time_limit_s, |_| g);
+            // 10 ms steps vs the generator's 20 ms: allow what 2 m/s covers in 10 ms.
+            assert!(at_start >= REST_CLEARANCE_M - 0.02, "{scene} #{i}: {at_start}");
+            assert!(at_goal >= REST_CLEARANCE_M - 0.02, "{scene} #{i}: {at_goal}");
+        }
+    }
+}
+
+#[test]
+fn the_straight_motion_is_hit_in_most_episodes() {
+    let sc = Scenario::default_scenario();
+    let lim = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    for scene in ["dense", "fast-crossing", "tumbling-rods"] {
+        let mut hit = 0;
+        let n = 5;
+        for i in 0..n {
+            let e = ep(scene, 10 + i);
+            let tr = straight(&e.start, &e.goal, &lim).unwrap();
+            if min_distance(&e, tr.duration(), |t| tr.at(t).p) <= 0.0 {
+                hit += 1;
+            }
+        }
+        assert!(hit * 10 >= n * 6, "{scene}: the straight motion is hit in only {hit} of {n}");
+    }
+}
+
+#[test]
+fn resolving_puts_the_episode_into_the_scenario() {
+    let mut sc = Scenario::default_scenario();
+    sc.episode = Some(EpisodeCfg { scene: "dense".into(), index: 1, seed: 5, duration_s: Some(12.0) });
+    let e = resolve(&mut sc).unwrap().unwrap();
+    assert_eq!(sc.sim.initial_q, e.start);
+    assert_eq!(sc.goal.q, e.goal);
+    assert_eq!(sc.run.duration_s, 12.0);
+    assert_eq!(sc.load_debris_scene().unwrap(), e.scene);
+    let mut bad = Scenario::default_scenario();
+    bad.episode = Some(EpisodeCfg { scene: "nowhere".into(), index: 0, seed: 1, duration_s: None });
+    assert!(resolve(&mut bad).unwrap_err().contains("episode.scene"));
+}
