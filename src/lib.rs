@@ -8,5 +8,6 @@
 
 pub mod launch;
 pub mod lockstep;
+pub mod plan_cli;
 pub mod study;
 pub mod train;

@@ -147,6 +147,26 @@ enum Cmd {
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
+    /// Solve one planning problem (JSON file, format: docs/planning-problem.md) and print the plan.
+    Plan {
+        /// The problem file.
+        #[arg(long)]
+        problem: PathBuf,
+        /// Planning time, s (overrides the file's time_limit_s).
+        #[arg(long)]
+        time_limit: Option<f64>,
+        /// Also write the solution as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// Export a scenario's start, goal and true debris motion as a planning problem file.
+    PlanProblem {
+        #[command(flatten)]
+        common: Common,
+        /// The problem file to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Run the same cores in process, in lockstep (deterministic, no IPC); print the result as JSON.
     Eval {
         #[command(flatten)]
@@ -296,6 +316,40 @@ fn main() -> ExitCode {
                 println!("rows: {}", p.display());
             }
             Ok(rows.iter().all(|r| r.error.is_none()))
+        }
+        Cmd::Plan { problem, time_limit, json } => {
+            let sol = dkrrt::plan_cli::plan(&problem, time_limit)?;
+            let text = serde_json::to_string_pretty(&sol).map_err(|e| e.to_string())?;
+            if let Some(p) = &json {
+                std::fs::write(p, &text).map_err(|e| format!("--json {}: {e}", p.display()))?;
+            }
+            println!(
+                "solved {}  first solution {}  plan time {:.3} s  iterations {}  duration {:.2} s  path {:.3} rad  min clearance {}",
+                sol.solved,
+                sol.first_solution_s.map_or("-".into(), |t| format!("{:.4} s", t)),
+                sol.plan_time_s,
+                sol.iterations,
+                sol.duration_s,
+                sol.path_length_rad,
+                sol.min_clearance_m.map_or("-".into(), |m| format!("{m:.3} m")),
+            );
+            if json.is_none() {
+                println!("{text}");
+            }
+            Ok(sol.solved)
+        }
+        Cmd::PlanProblem { common, out } => {
+            let sc = scenario(&common)?;
+            let p = dkrrt::plan_cli::export(&sc)?;
+            let text = serde_json::to_string(&p).map_err(|e| e.to_string())?;
+            std::fs::write(&out, text).map_err(|e| format!("--out {}: {e}", out.display()))?;
+            println!(
+                "problem: {} ({} obstacles, {:.1} s of motion)",
+                out.display(),
+                p.obstacles.len(),
+                sc.run.duration_s
+            );
+            Ok(true)
         }
         Cmd::Eval { common } => {
             let sc = scenario(&common)?;

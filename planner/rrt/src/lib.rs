@@ -7,6 +7,7 @@
 //!   first solution fast, then improved while the budget lasts; escape when the goal is out
 //!   of reach).
 //! * [`build`]: a plan as the fixed-size trajectory message the tracker follows.
+//! * [`problem`]: a planning problem as a JSON file and its solution (`dkrrt plan`).
 //! * [`replan`]: the replanning loop's step function (keep / replan / splice / fallbacks).
 //!
 //! Preallocated: after construction, a planning cycle allocates nothing (counting-allocator
@@ -14,6 +15,7 @@
 
 pub mod build;
 pub mod check;
+pub mod problem;
 pub mod replan;
 pub mod rrt;
 pub mod world;

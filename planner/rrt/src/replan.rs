@@ -224,13 +224,15 @@ impl Replanner {
         self.status = st;
         if self.debug {
             eprintln!(
-                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} first={:?} clear={:.3} {:.1} ms",
+                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} edges={} configs={} first={:?} clear={:.3} {:.1} ms",
                 self.world.len(),
                 tracker.mode,
                 self.current.traj_id,
                 st.fallback,
                 st.iterations,
                 self.last_plan.nodes,
+                self.last_plan.edges_checked,
+                self.last_plan.configs_checked,
                 self.last_plan.first_solution_iter,
                 st.min_predicted_clearance_m,
                 dt as f64 * 1e-6

@@ -143,6 +143,8 @@ pub struct Planner {
     best_goal: Option<(u32, f64, f64, f64)>, // (parent node, wait, arrival, min clearance)
     path: Vec<u32>,
     pub stats: PlanStats,
+    /// Wall time from the start of the last `plan` call to its first solution, s.
+    pub first_solution_s: Option<f64>,
     pub debug: bool,
 }
 
@@ -163,6 +165,7 @@ impl Planner {
             best_goal: None,
             path: Vec::with_capacity(cfg.max_nodes.max(2)),
             stats: PlanStats::default(),
+            first_solution_s: None,
             debug: false,
             cfg,
         }
@@ -297,6 +300,8 @@ impl Planner {
         out: &mut Trajectory,
     ) -> Option<Plan> {
         self.stats = PlanStats::default();
+        let wall = std::time::Instant::now();
+        self.first_solution_s = None;
         let c0 = self.checker.configs_checked;
         self.nodes.clear();
         self.best_goal = None;
@@ -339,6 +344,9 @@ impl Planner {
             self.try_goal(world, i, &goal, &WAIT_LADDER);
         }
         let mut first = self.best_goal.map(|_| 0u32);
+        if first.is_some() {
+            self.first_solution_s = Some(wall.elapsed().as_secs_f64());
+        }
         let mut it = 0u32;
         while it < budget && keep_going() {
             if let Some(f) = first {
@@ -369,6 +377,7 @@ impl Planner {
             self.nodes.push(Node { q: q_new, t, parent: near, wait: w, min_clear: clear });
             if self.try_goal(world, idx, &goal, &WAIT_LADDER[..4]) && first.is_none() {
                 first = Some(it);
+                self.first_solution_s = Some(wall.elapsed().as_secs_f64());
             }
         }
         self.stats.iterations = it;
@@ -444,6 +453,12 @@ impl Planner {
             min_clearance: clear,
             n_waypoints: self.path.len(),
         })
+    }
+
+    /// The intermediate waypoints of the last written plan (rest configurations after the start,
+    /// before the goal) with their arrival times (plant time, s).
+    pub fn waypoints(&self) -> impl Iterator<Item = ([f64; NJ], f64)> + '_ {
+        self.path.iter().map(|&i| (self.nodes[i as usize].q, self.nodes[i as usize].t))
     }
 
     /// Writes the path root → … → `last` (→ goal after `wait`) into `out`.

@@ -1,0 +1,271 @@
+//! A planning problem as a file (`dkrrt plan --problem FILE.json`): its format, its checks and
+//! its solution. The format is documented in `docs/planning-problem.md`.
+
+use dkrrt_model::{ArmModel, NJ};
+use dkrrt_msg::{DebrisShape, Trajectory, Zeroed};
+use dkrrt_otg::{KinState, Limits};
+use serde::{Deserialize, Serialize};
+
+use crate::replan::check_message;
+use crate::rrt::{Planner, PlannerConfig, Reach, Request};
+use crate::world::{After, TimedPose, WorldInTime};
+
+/// An obstacle's shape (`capsule`: axis along local z).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ProblemShape {
+    Sphere { radius: f64 },
+    Box { half_extents: [f64; 3] },
+    Capsule { half_length: f64, radius: f64 },
+}
+
+/// One timed pose (base frame of the arm; `q` = w, x, y, z).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProblemPose {
+    pub t: f64,
+    pub p: [f64; 3],
+    pub q: [f64; 4],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProblemObstacle {
+    pub shape: ProblemShape,
+    /// One pose: static; several: linearly interpolated (attitude slerp), held after the last.
+    pub poses: Vec<ProblemPose>,
+}
+
+/// The problem file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Problem {
+    /// URDF file of the arm; "" = the shipped arm.
+    pub urdf: String,
+    pub start: [f64; NJ],
+    pub goal: [f64; NJ],
+    /// Joint speed limits, rad/s (default: the shipped scenario's motion limits).
+    #[serde(default)]
+    pub v_max: Option<[f64; NJ]>,
+    pub margin_m: f64,
+    pub time_limit_s: f64,
+    pub seed: u64,
+    pub obstacles: Vec<ProblemObstacle>,
+}
+
+/// A field of the problem that is wrong, and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct ProblemError {
+    pub field: String,
+    pub reason: String,
+}
+
+fn err(field: impl Into<String>, reason: impl Into<String>) -> ProblemError {
+    ProblemError { field: field.into(), reason: reason.into() }
+}
+
+fn finite(field: &str, xs: &[f64]) -> Result<(), ProblemError> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(err(format!("{field}[{i}]"), "must be a finite number")),
+        None => Ok(()),
+    }
+}
+
+impl Problem {
+    /// Parses and checks a problem; errors name the field (`obstacles[2].poses[0].q`, ...).
+    pub fn from_json(text: &str) -> Result<Problem, ProblemError> {
+        let p: Problem = serde_json::from_str(text).map_err(|e| err("problem", e.to_string()))?;
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Range checks (the joint limits are checked against the arm by [`solve`]).
+    pub fn validate(&self) -> Result<(), ProblemError> {
+        finite("start", &self.start)?;
+        finite("goal", &self.goal)?;
+        if let Some(v) = &self.v_max {
+            finite("v_max", v)?;
+            if let Some(i) = v.iter().position(|x| *x <= 0.0) {
+                return Err(err(format!("v_max[{i}]"), "must be > 0"));
+            }
+        }
+        if !(self.margin_m.is_finite() && (0.0..=1.0).contains(&self.margin_m)) {
+            return Err(err("margin_m", "must be within [0, 1] m"));
+        }
+        if !(self.time_limit_s.is_finite() && self.time_limit_s > 0.0 && self.time_limit_s <= 600.0) {
+            return Err(err("time_limit_s", "must be within (0, 600] s"));
+        }
+        if self.obstacles.len() > dkrrt_msg::MAX_DEBRIS {
+            return Err(err("obstacles", format!("at most {} obstacles", dkrrt_msg::MAX_DEBRIS)));
+        }
+        for (i, o) in self.obstacles.iter().enumerate() {
+            let f = |x: &str| format!("obstacles[{i}].{x}");
+            let dims: Vec<(String, f64)> = match &o.shape {
+                ProblemShape::Sphere { radius } => vec![(f("shape.radius"), *radius)],
+                ProblemShape::Box { half_extents: h } => {
+                    (0..3).map(|k| (f(&format!("shape.half_extents[{k}]")), h[k])).collect()
+                }
+                ProblemShape::Capsule { half_length, radius } => {
+                    vec![(f("shape.half_length"), *half_length), (f("shape.radius"), *radius)]
+                }
+            };
+            for (name, v) in dims {
+                if !(v.is_finite() && v > 0.0 && v <= 50.0) {
+                    return Err(err(name, "must be within (0, 50] m"));
+                }
+            }
+            if o.poses.is_empty() {
+                return Err(err(f("poses"), "at least one pose"));
+            }
+            for (k, p) in o.poses.iter().enumerate() {
+                let g = |x: &str| format!("obstacles[{i}].poses[{k}].{x}");
+                if !p.t.is_finite() {
+                    return Err(err(g("t"), "must be a finite number"));
+                }
+                if k > 0 && p.t <= o.poses[k - 1].t {
+                    return Err(err(g("t"), "times must increase"));
+                }
+                finite(&g("p"), &p.p)?;
+                finite(&g("q"), &p.q)?;
+                let n = p.q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if (n - 1.0).abs() > 1e-3 {
+                    return Err(err(g("q"), format!("must be a unit quaternion (norm {n})")));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The obstacles as a world in time (held after their last pose).
+    pub fn world(&self) -> Result<WorldInTime, ProblemError> {
+        let mut w = WorldInTime::new(self.margin_m);
+        for (i, o) in self.obstacles.iter().enumerate() {
+            let shape = match &o.shape {
+                ProblemShape::Sphere { radius } => DebrisShape::sphere(*radius),
+                ProblemShape::Box { half_extents } => DebrisShape::cuboid(*half_extents, [0.0; 3]),
+                ProblemShape::Capsule { half_length, radius } => DebrisShape::capsule(*half_length, *radius),
+            };
+            let poses: Vec<TimedPose> = o
+                .poses
+                .iter()
+                .map(|p| {
+                    let n = p.q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    TimedPose { t: p.t, p: p.p, q: p.q.map(|x| x / n), sigma: 0.0, sigma_pos: 0.0 }
+                })
+                .collect();
+            w.push_track(i as u32, shape, &poses, After::Hold)
+                .map_err(|e| err(format!("obstacles[{i}]"), e.to_string()))?;
+        }
+        Ok(w)
+    }
+}
+
+/// The answer of [`solve`] (the `dkrrt plan` output).
+#[derive(Debug, Clone, Serialize)]
+pub struct Solution {
+    pub solved: bool,
+    pub first_solution_s: Option<f64>,
+    pub plan_time_s: f64,
+    pub iterations: u32,
+    /// Waypoints (rest configurations: start, …, goal) and the times the arm is at them.
+    pub path: Vec<[f64; NJ]>,
+    pub times_s: Vec<f64>,
+    /// The timed trajectory the tracker would follow, every 10 ms: [t, q1..q6].
+    pub trajectory: Vec<[f64; NJ + 1]>,
+    pub duration_s: f64,
+    pub path_length_rad: f64,
+    /// Smallest clearance along the trajectory (every 1 ms, beyond the margin), m.
+    pub min_clearance_m: Option<f64>,
+}
+
+/// Solves `p` for the arm `model` within `p.time_limit_s` (wall clock), anytime: the first
+/// solution, then improvements until the time limit. `a_max`/`j_max`: the motion limits.
+pub fn solve(
+    p: &Problem,
+    model: ArmModel,
+    v_default: [f64; NJ],
+    a_max: [f64; NJ],
+    j_max: [f64; NJ],
+) -> Result<Solution, ProblemError> {
+    let l = model.limits();
+    for (name, q) in [("start", &p.start), ("goal", &p.goal)] {
+        for i in 0..NJ {
+            if !(l.q_min[i]..=l.q_max[i]).contains(&q[i]) {
+                return Err(err(
+                    format!("{name}[{i}]"),
+                    format!("outside the joint limits [{}, {}]", l.q_min[i], l.q_max[i]),
+                ));
+            }
+        }
+    }
+    let world = p.world()?;
+    let horizon = p.obstacles.iter().flat_map(|o| o.poses.last()).map(|x| x.t).fold(0.0, f64::max);
+    let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
+    let cfg = PlannerConfig {
+        seed: p.seed,
+        // The obstacles' motion is known for all time: check every plan to its end.
+        lookahead_s: (horizon + 5.0).max(60.0),
+        improve_iters: u32::MAX,
+        max_nodes: 4000,
+        ..PlannerConfig::default()
+    };
+    let mut planner = Planner::new(model, limits, cfg);
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let t_start = std::time::Instant::now();
+    let limit = p.time_limit_s;
+    let req = Request { start: KinState::rest(p.start), t0: 0.0, goal: p.goal };
+    let plan = planner.plan(&req, &world, u32::MAX, || t_start.elapsed().as_secs_f64() < limit, 1, &mut out);
+    let plan_time_s = t_start.elapsed().as_secs_f64();
+    let stats = planner.stats;
+    let solved = plan.is_some_and(|x| x.reach == Reach::Goal);
+    let mut sol = Solution {
+        solved,
+        first_solution_s: None,
+        plan_time_s,
+        iterations: stats.iterations,
+        path: Vec::new(),
+        times_s: Vec::new(),
+        trajectory: Vec::new(),
+        duration_s: 0.0,
+        path_length_rad: 0.0,
+        min_clearance_m: None,
+    };
+    if !solved {
+        return Ok(sol);
+    }
+    sol.first_solution_s = planner.first_solution_s;
+    sol.path.push(p.start);
+    sol.times_s.push(0.0);
+    for (q, t) in planner.waypoints() {
+        sol.path.push(q);
+        sol.times_s.push(t);
+    }
+    sol.path.push(p.goal);
+    sol.times_s.push(out.duration_s);
+    sol.duration_s = out.duration_s;
+    sol.path_length_rad =
+        sol.path.windows(2).map(|w| (0..NJ).map(|j| (w[1][j] - w[0][j]).powi(2)).sum::<f64>().sqrt()).sum();
+    let n = (out.duration_s / 0.01).ceil() as usize;
+    for k in 0..=n {
+        let t = (k as f64 * 0.01).min(out.duration_s);
+        let s = out.sample(t);
+        let mut row = [0.0; NJ + 1];
+        row[0] = t;
+        row[1..].copy_from_slice(&s.p);
+        sol.trajectory.push(row);
+    }
+    let end = out.duration_s + 1.0;
+    let (ok, _) = check_message(&mut planner, &world, &out, 0.0, end);
+    let mut m = f64::INFINITY;
+    planner.checker.cap = 100.0;
+    let mut t = 0.0;
+    while t <= end {
+        let q = out.sample(t).p;
+        m = m.min(planner.checker.clearance_at(&world, &q, t, 0.0, f64::NEG_INFINITY));
+        t += 1e-3;
+    }
+    sol.min_clearance_m = Some(m);
+    sol.solved = ok && m >= 0.0;
+    Ok(sol)
+}
