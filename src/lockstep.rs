@@ -142,8 +142,11 @@ impl Lockstep {
         let tracker = Tracker::new(model.clone(), TrackerConfig::from_scenario(sc));
         let source = if sc.planner.method == "dk-rrt" {
             let cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
+            // In process, the work per cycle is the iteration budget, never the wall clock.
+            let mut core = Box::new(replanner(sc, model));
+            core.cfg.enforce_deadline = false;
             TrajSource::Planner {
-                core: Box::new(replanner(sc, model)),
+                core,
                 out: Box::new(<Trajectory as Zeroed>::zeroed()),
                 next_ns: 0,
                 cycle_ns,

@@ -7,7 +7,7 @@
 //! send); that is what the bound counts: two publishes per tick (state and
 //! command) -> at most 2 allocations per tick, all freed in the same tick.
 
-use dkrrt::lockstep::Lockstep;
+use dkrrt::lockstep::{Lockstep, TrajSource};
 use dkrrt_config::arm::contract_limits;
 use dkrrt_config::Scenario;
 use dkrrt_msg::bus::Bus;
@@ -19,7 +19,8 @@ static ALLOC: CountingAlloc = CountingAlloc;
 
 #[test]
 fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
-    let sc = Scenario::default_scenario();
+    let mut sc = Scenario::default_scenario();
+    sc.planner.method = "straight".into();
     let run = format!("alloc-{}", std::process::id());
     // Dropped after the buses and ports below: removes the run's files from /dev/shm.
     struct Leftovers(String);
@@ -30,7 +31,9 @@ fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
     }
     let _clean = Leftovers(run.clone());
     let mut ls = Lockstep::new(&sc).unwrap();
-    let lim = contract_limits(ls.plant.model());
+    let lim = contract_limits(ls.sim.plant.model());
+    let TrajSource::Straight { traj: straight, .. } = &ls.source else { panic!("straight source") };
+    let straight = straight.clone();
     let sim_bus = Bus::new(&run, "sim").unwrap();
     let tr_bus = Bus::new(&run, "tracker").unwrap();
     let mut state_pub = sim_bus.publisher::<RobotState>(Source::Sim).unwrap();
@@ -49,7 +52,7 @@ fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
 
     let mut tick = |ls: &mut Lockstep| {
         // sim side: publish the measured state
-        let m = ls.plant.measured();
+        let m = ls.sim.plant.measured();
         state.header.stamp_ns = m.tick * 1_000_000;
         state.q = m.q;
         state.qd = m.qd;
@@ -60,7 +63,7 @@ fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
         let _ = traj_sub.latest(&mut traj, &lim).unwrap();
         let out = ls.tracker.tick(Some((got.header.seq, got.header.stamp_ns, &got.q, &got.qd)));
         if !started {
-            ls.tracker.set_trajectory(&ls.traj);
+            ls.tracker.set_trajectory(&straight);
             started = true;
         }
         cmd.tau = out.tau;
@@ -68,8 +71,8 @@ fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
         cmd.mode = out.mode as u32;
         cmd_pub.publish(&mut cmd).unwrap();
         // sim side: take the command, step
-        cmd_sub.for_each(&lim, |c| ls.plant.offer_command(c.state_seq, &c.tau)).unwrap();
-        ls.plant.step();
+        cmd_sub.for_each(&lim, |c| ls.sim.plant.offer_command(c.state_seq, &c.tau)).unwrap();
+        ls.sim.plant.step();
     };
 
     // Warm up (first connections, lazily created buffers).

@@ -19,6 +19,7 @@ pub fn configs(sc: &Scenario) -> (PlannerConfig, ReplanConfig) {
         commit_s: p.commit_ms * 1e-3,
         margin_m: p.margin_m,
         iterations: p.iterations,
+        enforce_deadline: sc.run.mode == dkrrt_config::Mode::Realtime,
         ..ReplanConfig::default()
     };
     (pc, rc)

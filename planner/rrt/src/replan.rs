@@ -41,6 +41,11 @@ pub struct ReplanConfig {
     pub forecast_wait_s: f64,
     /// Goal tolerance (every joint), rad.
     pub goal_tol_rad: f64,
+    /// Stop planning at the compute deadline (real time). Off in lockstep runs: the work is
+    /// exactly `iterations` per cycle, whatever the machine's speed (deterministic).
+    pub enforce_deadline: bool,
+    /// At rest at the end of the active plan, react to predicted conflicts this close only, s.
+    pub rest_react_s: f64,
 }
 
 impl Default for ReplanConfig {
@@ -53,6 +58,8 @@ impl Default for ReplanConfig {
             iterations: 300,
             forecast_wait_s: 2.0,
             goal_tol_rad: 0.01,
+            enforce_deadline: true,
+            rest_react_s: 3.0,
         }
     }
 }
@@ -284,9 +291,12 @@ impl Replanner {
         let cur_done = cur_id != 0 && self.current.time_of((t_now * 1e9) as u64) >= self.current.duration_s;
         // Is the active plan still valid from now on?
         let cur_valid = if cur_id != 0 && (following || cur_done || tracker.mode == ControllerMode::Track) {
-            let c = self.check_traj(t_now, t_end);
-            st.min_predicted_clearance_m = c.1;
-            c.0
+            let c = check_message_at(&mut self.planner, &self.world, &self.current, t_now, t_end);
+            st.min_predicted_clearance_m = c.min_clearance;
+            // At rest at the end of the plan, a predicted conflict further ahead than
+            // `rest_react_s` is waited on: newer forecasts (smaller bounds) decide, rather than
+            // leaving a configuration that is clear now for one found in a hurry.
+            c.ok || (cur_done && c.t_fail > t_now + self.cfg.rest_react_s)
         } else {
             false
         };
@@ -319,7 +329,8 @@ impl Replanner {
             KinState::rest(*q_meas)
         };
         let req = Request { start, t0: t_c, goal: *goal_for(self.goal.as_ref()) };
-        let deadline = c_start + (self.cfg.deadline_s * 1e9) as u64;
+        let deadline =
+            if self.cfg.enforce_deadline { c_start + (self.cfg.deadline_s * 1e9) as u64 } else { u64::MAX };
         let id = self.next_id;
         self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
         let plan = self.planner.plan(&req, &self.world, self.cfg.iterations, || clock() < deadline, id, out);
@@ -392,18 +403,14 @@ impl Replanner {
         self.next_id += 1;
         self.stats.replans += 1;
     }
-
-    /// The active plan checked over [t0, t1]: (valid, min clearance).
-    fn check_traj(&mut self, t0: f64, t1: f64) -> (bool, f64) {
-        check_message(&mut self.planner, &self.world, &self.current, t0, t1)
-    }
 }
 
 fn goal_for(g: Option<&[f64; NJ]>) -> &[f64; NJ] {
     g.unwrap_or(&[0.0; NJ])
 }
 
-/// A message trajectory checked against the world over [t0, t1] (the final rest included).
+/// A message trajectory checked against the world over [t0, t1] (the final rest included):
+/// (valid, min clearance).
 pub fn check_message(
     planner: &mut Planner,
     world: &WorldInTime,
@@ -411,7 +418,18 @@ pub fn check_message(
     t0: f64,
     t1: f64,
 ) -> (bool, f64) {
-    let start = tr.start_ns as f64 * 1e-9;
-    let c = planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p);
+    let c = check_message_at(planner, world, tr, t0, t1);
     (c.ok, c.min_clearance)
+}
+
+/// As [`check_message`], with the first failing time.
+pub fn check_message_at(
+    planner: &mut Planner,
+    world: &WorldInTime,
+    tr: &Trajectory,
+    t0: f64,
+    t1: f64,
+) -> crate::Check {
+    let start = tr.start_ns as f64 * 1e-9;
+    planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p)
 }

@@ -124,11 +124,18 @@ fn rotated_box_distance_uses_attitude() {
     let d = &mut w.debris_mut()[0];
     d.state.p = Vector3::zeros();
     d.state.q = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2);
-    let probe = LinkCapsule { a: [0.9, 0.5, 0.0], b: [0.9, 1.0, 0.0], radius: 0.1 };
-    let mut c = [ContactPair::default(); 1];
-    let r = proximity(&w.debris()[..1], &[probe], 0.0, &mut c);
+    let probe = dkrrt_collision::PosedCapsule::new([0.9, 0.5, 0.0], [0.9, 1.0, 0.0], 0.1);
+    let d = &w.debris()[0];
+    let q = d.state.q.quaternion();
+    let o = dkrrt_collision::Obstacle::from_shape(
+        d.id,
+        d.props.shape.clone(),
+        d.props.bounding_radius,
+        &[0.0; 3],
+        &[q.w, q.i, q.j, q.k],
+    );
     // GJK converges to ~1e-8 m on curved shapes.
-    assert!((r.min_distance - (0.5 - 0.05 - 0.1)).abs() < 1e-6, "{}", r.min_distance);
+    assert!((o.distance(&probe) - (0.5 - 0.05 - 0.1)).abs() < 1e-6, "{}", o.distance(&probe));
 }
 
 #[test]
