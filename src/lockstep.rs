@@ -16,8 +16,7 @@ use dkrrt_planner::goto::plan;
 use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
 use dkrrt_planner::replan::replanner;
 use dkrrt_predictor::{GateStats, Models};
-use dkrrt_rrt::{Fallbacks, Replanner, TrackerView};
-use dkrrt_rt::hist::Percentiles;
+use dkrrt_rrt::{Replanner, Summary, TrackerView};
 use dkrrt_sim::core::SimCore;
 use dkrrt_sim::debris::DebrisStats;
 use dkrrt_sim::plant::PlantStats;
@@ -43,7 +42,7 @@ pub struct EvalReport {
     /// Predictor figures, `null` without debris.
     pub predictor: Option<PredictorFigures>,
     /// Planner figures, `null` for the straight method.
-    pub planner: Option<PlannerFigures>,
+    pub planner: Option<Summary>,
 }
 
 /// What the in-process predictor did.
@@ -54,22 +53,6 @@ pub struct PredictorFigures {
     pub tracks: u32,
     pub observations: ObsCounters,
     pub gate: GateStats,
-}
-
-/// What the in-process planner did (the same fields as the launcher's report).
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct PlannerFigures {
-    pub method: String,
-    pub cycles: u64,
-    pub replans: u64,
-    /// Compute time of the cycles that planned, ms (wall clock of this machine).
-    pub plan_ms: Percentiles,
-    pub first_plan_ms: Option<f64>,
-    pub deadline_misses: u64,
-    pub fallbacks: Fallbacks,
-    pub min_predicted_clearance_m: Option<f64>,
-    pub plans_rejected_by_final_check: u64,
-    pub iterations: u64,
 }
 
 /// The predictor, wired in process.
@@ -251,21 +234,9 @@ impl Lockstep {
         let st = self.tracker.stats;
         let (duration, planner) = match &self.source {
             TrajSource::Straight { duration, .. } => (*duration, None),
-            TrajSource::Planner { core, .. } => (
-                core.current().duration_s,
-                Some(PlannerFigures {
-                    method: sc.planner.method.clone(),
-                    cycles: core.stats.cycles,
-                    replans: core.stats.replans,
-                    plan_ms: core.plan_ms(),
-                    first_plan_ms: core.stats.first_plan_ms,
-                    deadline_misses: core.stats.deadline_misses,
-                    fallbacks: core.stats.fallbacks,
-                    min_predicted_clearance_m: core.stats.min_predicted_clearance_m,
-                    plans_rejected_by_final_check: core.stats.plans_rejected_by_final_check,
-                    iterations: core.stats.planner_iterations,
-                }),
-            ),
+            TrajSource::Planner { core, .. } => {
+                (core.current().duration_s, Some(core.summary(&sc.planner.method)))
+            }
         };
         EvalReport {
             method: sc.planner.method.clone(),

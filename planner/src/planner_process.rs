@@ -19,30 +19,17 @@ use dkrrt_config::arm::contract_limits;
 use dkrrt_config::{Mode, Scenario};
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
-use dkrrt_rrt::{Fallbacks, TrackerView};
+use dkrrt_rrt::{Summary, TrackerView};
 
 use crate::replan::replanner;
 use dkrrt_rt::clock::{mono_ns, Pacer};
-use dkrrt_rt::hist::Percentiles;
 use dkrrt_rt::signals;
 
-/// What the planner reports at exit (JSON via `--stats`).
+/// What the planner reports at exit (JSON via `--stats`): the loop's summary and the bus.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct PlannerReport {
-    pub method: String,
-    pub cycles: u64,
-    /// Trajectories published.
-    pub replans: u64,
-    /// Compute time of the cycles that ran the planner, ms.
-    pub plan_ms: Percentiles,
-    pub first_plan_ms: Option<f64>,
-    /// Cycles whose compute time exceeded `planner.deadline_ms`.
-    pub deadline_misses: u64,
-    pub fallbacks: Fallbacks,
-    pub min_predicted_clearance_m: Option<f64>,
-    pub plans_rejected_by_final_check: u64,
-    /// Plant time the arm was first at the goal (every joint within the tolerance), s.
-    pub goal_reached_s: Option<f64>,
+    #[serde(flatten)]
+    pub summary: Summary,
     pub forecasts_received: u64,
     pub rejected: u64,
     pub stopped_by_signal: bool,
@@ -152,18 +139,8 @@ pub fn run(
         0,
         0,
     );
-    let s = core.stats;
     let rep = PlannerReport {
-        method: sc.planner.method.clone(),
-        cycles: s.cycles,
-        replans: s.replans,
-        plan_ms: core.plan_ms(),
-        first_plan_ms: s.first_plan_ms,
-        deadline_misses: s.deadline_misses,
-        fallbacks: s.fallbacks,
-        min_predicted_clearance_m: s.min_predicted_clearance_m,
-        plans_rejected_by_final_check: s.plans_rejected_by_final_check,
-        goal_reached_s: s.goal_reached_s,
+        summary: core.summary(&sc.planner.method),
         forecasts_received: forecasts,
         rejected: state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
         stopped_by_signal,

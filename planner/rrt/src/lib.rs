@@ -21,6 +21,8 @@ pub mod rrt;
 pub mod world;
 
 pub use check::{Check, Checker};
-pub use replan::{check_message, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, TrackerView};
+pub use replan::{
+    check_message, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, Summary, TrackerView,
+};
 pub use rrt::{Plan, PlanStats, Planner, PlannerConfig, Reach, Request};
 pub use world::{After, TimedPose, WorldError, WorldInTime};

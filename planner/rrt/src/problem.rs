@@ -207,6 +207,7 @@ pub fn solve(
         // The obstacles' motion is known for all time: check every plan to its end.
         lookahead_s: (horizon + 5.0).max(60.0),
         improve_iters: u32::MAX,
+        max_configs: u64::MAX,
         max_nodes: 4000,
         ..PlannerConfig::default()
     };

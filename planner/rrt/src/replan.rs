@@ -98,6 +98,27 @@ pub struct ReplanStats {
     pub goal_reached_s: Option<f64>,
 }
 
+/// What the replanning loop did over a run (the `planner` section of reports, the same for
+/// the process and the lockstep).
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub method: String,
+    pub cycles: u64,
+    /// Trajectories published.
+    pub replans: u64,
+    /// Compute time of the cycles that ran the planner, ms.
+    pub plan_ms: Percentiles,
+    pub first_plan_ms: Option<f64>,
+    /// Cycles whose compute time exceeded the deadline.
+    pub deadline_misses: u64,
+    pub fallbacks: Fallbacks,
+    pub min_predicted_clearance_m: Option<f64>,
+    pub plans_rejected_by_final_check: u64,
+    /// Plant time the arm was first at the goal (every joint within the tolerance), s.
+    pub goal_reached_s: Option<f64>,
+    pub iterations: u64,
+}
+
 /// What one cycle decided.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Decision {
@@ -168,6 +189,24 @@ impl Replanner {
             max: p.max / 1e3,
             mean: p.mean / 1e3,
             count: p.count,
+        }
+    }
+
+    /// The run so far, for reports.
+    pub fn summary(&self, method: &str) -> Summary {
+        let s = &self.stats;
+        Summary {
+            method: method.to_string(),
+            cycles: s.cycles,
+            replans: s.replans,
+            plan_ms: self.plan_ms(),
+            first_plan_ms: s.first_plan_ms,
+            deadline_misses: s.deadline_misses,
+            fallbacks: s.fallbacks,
+            min_predicted_clearance_m: s.min_predicted_clearance_m,
+            plans_rejected_by_final_check: s.plans_rejected_by_final_check,
+            goal_reached_s: s.goal_reached_s,
+            iterations: s.planner_iterations,
         }
     }
 

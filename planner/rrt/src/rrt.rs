@@ -51,6 +51,9 @@ pub struct PlannerConfig {
     pub lookahead_s: f64,
     /// Iterations after the first solution.
     pub improve_iters: u32,
+    /// Configuration checks per `plan` call: a deterministic proxy for compute time (one check
+    /// against 32 forecast tracks takes ~5 µs on the development VM, see the README).
+    pub max_configs: u64,
     pub seed: u64,
 }
 
@@ -66,6 +69,7 @@ impl Default for PlannerConfig {
             delta_m: 0.03,
             lookahead_s: 5.0,
             improve_iters: 40,
+            max_configs: 4000,
             seed: 1,
         }
     }
@@ -348,7 +352,7 @@ impl Planner {
             self.first_solution_s = Some(wall.elapsed().as_secs_f64());
         }
         let mut it = 0u32;
-        while it < budget && keep_going() {
+        while it < budget && keep_going() && self.checker.configs_checked - c0 < self.cfg.max_configs {
             if let Some(f) = first {
                 if it >= f + self.cfg.improve_iters {
                     break;

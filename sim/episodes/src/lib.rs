@@ -33,6 +33,9 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 
+/// Draws of start, goal and threats before an episode is given up.
+pub const ATTEMPTS: u32 = 500;
+
 /// No object comes closer than this to the arm at rest at its start or goal, m.
 pub const REST_CLEARANCE_M: f64 = 0.3;
 
@@ -121,7 +124,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
     // Why draws were rejected: [small motion, shooting missed, a threat reaches the arm at rest,
     // too many background objects would].
     let mut why = [0u32; 4];
-    for attempt in 0..200u32 {
+    for attempt in 0..ATTEMPTS {
         // Start and goal: a real motion (≥ 0.5 rad on one of the first four joints).
         let start: [f64; NJ] = std::array::from_fn(|i| {
             (center[i] + rng.random_range(-0.5..0.5)).clamp(ql.q_min[i] + 0.1, ql.q_max[i] - 0.1)
@@ -180,7 +183,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             }
             if let Some(ti) = threats.iter().position(|t| t.1.id == id) {
                 re_aims += 1;
-                if re_aims > 8 {
+                if re_aims > 16 {
                     why[2] += 1;
                     break None;
                 }
@@ -244,7 +247,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
         });
     }
     Err(format!(
-        "episode {:?} #{} (seed {}): no solvable draw in 200 attempts (rejected: {} small motions, {} missed aims, \
+        "episode {:?} #{} (seed {}): no solvable draw in {ATTEMPTS} attempts (rejected: {} small motions, {} missed aims, \
          {} threats reaching the arm at rest, {} with too many background objects doing so)",
         cfg.scene, cfg.index, cfg.seed, why[0], why[1], why[2], why[3]
     ))
