@@ -330,6 +330,21 @@ fn killing_the_predictor_fails_the_run_and_leaves_the_arm_safe() {
 }
 
 #[test]
+fn killing_the_planner_fails_the_run_and_leaves_the_arm_safe() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (r, _) = kill_mid_run("kill-plan", "planner");
+    // The tracker kept what it had (the active plan, or the hold) and exited cleanly; the
+    // plant never needed its brakes, and nothing hit the arm.
+    for name in ["sim", "tracker", "predictor"] {
+        assert_eq!(proc_of(&r, name)["exit_code"], 0, "{}", proc_of(&r, name));
+    }
+    assert_eq!(r["debris"]["collision"], false);
+    assert_eq!(num(&r, "/safe_hold/plant_brake_engagements"), 0.0);
+    assert_eq!(r["planner"]["method"], "dk-rrt");
+    assert!(r["planner"]["cycles"].is_null(), "a killed planner leaves no statistics");
+}
+
+#[test]
 fn sigint_to_the_launcher_stops_every_process_gracefully() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("sigint");
