@@ -219,6 +219,7 @@ impl Replanner {
     /// one arrived (`None` keeps the last). `clock()` reads a monotonic clock in ns (for the
     /// compute time and the deadline; the lockstep passes a real clock too, the budget is
     /// `cfg.iterations` either way). Writes a new trajectory into `out` when `publish`.
+    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         now_ns: u64,
