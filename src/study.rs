@@ -248,7 +248,7 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
 /// The per-scene table.
 pub fn table(rows: &[Row], scenes: &[String], methods: &[String]) -> String {
     let mut s = String::from(
-        "scene          method    episodes  completed  collisions  time-to-goal s (median)  plan ms p50 / p99 / max  replans (mean)  lockstep speed\n",
+        "scene          method    episodes  completed  collisions  time-to-goal s (median)  plan ms, worst episode p50 / p99 / max  replans (mean)  lockstep speed\n",
     );
     for sc in scenes {
         for m in methods {
@@ -270,7 +270,7 @@ pub fn table(rows: &[Row], scenes: &[String], methods: &[String]) -> String {
             let speed =
                 r.iter().map(|x| x.plant_s).sum::<f64>() / r.iter().map(|x| x.wall_s).sum::<f64>().max(1e-9);
             s.push_str(&format!(
-                "{sc:<14} {m:<9} {n:>8}  {:>8.1}%  {:>6} ({:>3.0}%)  {:>23}  {:>7.2} / {:>6.2} / {:>6.2}  {:>14.1}  {:>10.0}x\n",
+                "{sc:<14} {m:<9} {n:>8}  {:>8.1}%  {:>6} ({:>3.0}%)  {:>23}  {:>21.2} / {:>6.2} / {:>6.2}  {:>14.1}  {:>10.0}x\n",
                 100.0 * done as f64 / n as f64,
                 col,
                 100.0 * col as f64 / n as f64,
