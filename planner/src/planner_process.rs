@@ -15,7 +15,6 @@
 
 use std::path::Path;
 
-use dkrrt_config::arm::contract_limits;
 use dkrrt_config::{Mode, Scenario};
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
@@ -43,12 +42,7 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<PlannerReport, String> {
     signals::install();
-    let model = sc.load_arm().map_err(|e| e.to_string())?;
-    let lim = contract_limits(&model);
-    let mut goal = goal.unwrap_or(sc.goal.q);
-    let mut g = <Goal as Zeroed>::zeroed();
-    g.q = goal;
-    g.validate(&lim).map_err(|e| format!("planner: goal rejected: {e}"))?;
+    let (model, lim, mut goal) = crate::source_setup(sc, goal, "planner")?;
     let mut core = replanner(sc, model);
     let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;

@@ -8,7 +8,6 @@
 
 use std::path::Path;
 
-use dkrrt_config::arm::contract_limits;
 use dkrrt_config::Scenario;
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
@@ -41,12 +40,7 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<GotoReport, String> {
     signals::install();
-    let model = sc.load_arm().map_err(|e| e.to_string())?;
-    let lim = contract_limits(&model);
-    let goal = goal.unwrap_or(sc.goal.q);
-    let mut g = <Goal as Zeroed>::zeroed();
-    g.q = goal;
-    g.validate(&lim).map_err(|e| format!("goto: goal rejected: {e}"))?;
+    let (_, lim, goal) = crate::source_setup(sc, goal, "goto")?;
     let bus = Bus::new(run, "goto").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
