@@ -72,7 +72,7 @@ pub enum TrajSource {
     /// One jerk-limited line to the goal.
     Straight { traj: Box<Trajectory>, duration: f64 },
     /// The DK-RRT replanning loop.
-    Planner { core: Box<Replanner>, out: Box<Trajectory>, next_ns: u64, cycle_ns: u64 },
+    Planner { core: Box<Replanner>, out: Box<Trajectory> },
 }
 
 /// The wired cores, stepped one tick at a time.
@@ -124,16 +124,10 @@ impl Lockstep {
         let sim = SimCore::new(sc, model.clone())?;
         let tracker = Tracker::new(model.clone(), TrackerConfig::from_scenario(sc));
         let source = if sc.planner.method == "dk-rrt" {
-            let cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
             // In process, the work per cycle is the iteration budget, never the wall clock.
             let mut core = Box::new(replanner(sc, model));
             core.cfg.enforce_deadline = false;
-            TrajSource::Planner {
-                core,
-                out: Box::new(<Trajectory as Zeroed>::zeroed()),
-                next_ns: 0,
-                cycle_ns,
-            }
+            TrajSource::Planner { core, out: Box::new(<Trajectory as Zeroed>::zeroed()) }
         } else {
             let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
             let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
@@ -170,9 +164,8 @@ impl Lockstep {
     pub fn tick(&mut self, deliver_state: bool) {
         let m = self.sim.plant.measured();
         let stamp = m.tick * self.period_ns;
-        if let TrajSource::Planner { core, out, next_ns, cycle_ns } = &mut self.source {
-            if deliver_state && stamp >= *next_ns {
-                *next_ns = stamp + *cycle_ns;
+        if let TrajSource::Planner { core, out } = &mut self.source {
+            if deliver_state && core.cycle_due(stamp) {
                 let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };
                 let fc = self
                     .predictor

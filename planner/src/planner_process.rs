@@ -59,7 +59,6 @@ pub fn run(
     let cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
     let mut pacer = Pacer::new(cycle_ns, 0, 2_000_000);
     let mut have_state = false;
-    let mut next_cycle_ns = 0u64;
     let mut forecasts = 0u64;
     let mut clock = mono_ns;
     let lockstep = sc.run.mode == Mode::Lockstep;
@@ -78,9 +77,9 @@ pub fn run(
         cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
         goal_sub.for_each(&lim, |m| goal = m.q).map_err(|e| e.to_string())?;
         let end = have_state && state.header.flags & FLAG_END_OF_RUN != 0;
-        let due = have_state && (!lockstep || state.header.stamp_ns >= next_cycle_ns);
-        if due && !end {
-            next_cycle_ns = state.header.stamp_ns - state.header.stamp_ns % cycle_ns + cycle_ns;
+        // Realtime: every wake is a cycle; lockstep: the core's plant-clock cadence.
+        let due = have_state && !end && (!lockstep || core.cycle_due(state.header.stamp_ns));
+        if due {
             let new_fc = fc_sub.latest(&mut fc, &lim).map_err(|e| e.to_string())?;
             forecasts += new_fc as u64;
             let view = TrackerView {

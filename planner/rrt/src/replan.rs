@@ -146,6 +146,7 @@ pub struct Replanner {
     /// did not reach it.
     backoff: u32,
     misses: u32,
+    next_cycle_ns: u64,
     /// Print one line per cycle to stderr (`DKRRT_PLAN_DEBUG` set at construction).
     pub debug: bool,
 }
@@ -175,6 +176,7 @@ impl Replanner {
             debug: std::env::var_os("DKRRT_PLAN_DEBUG").is_some(),
             backoff: 0,
             misses: 0,
+            next_cycle_ns: 0,
             cfg,
         }
     }
@@ -190,6 +192,17 @@ impl Replanner {
             mean: p.mean / 1e3,
             count: p.count,
         }
+    }
+
+    /// The cycle cadence on the plant clock, shared by both shells: true (and the next cycle
+    /// scheduled) when `stamp_ns` has reached the next multiple of the cycle period.
+    pub fn cycle_due(&mut self, stamp_ns: u64) -> bool {
+        if stamp_ns < self.next_cycle_ns {
+            return false;
+        }
+        let c = ((self.cfg.cycle_s * 1e9).round() as u64).max(1);
+        self.next_cycle_ns = stamp_ns - stamp_ns % c + c;
+        true
     }
 
     /// The run so far, for reports.
