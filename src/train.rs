@@ -208,6 +208,9 @@ pub fn predict_eval(
         cfg.seed,
         t.elapsed().as_secs_f64()
     );
+    if rows.iter().any(|r| r.method == Method::DeepKoopmanOnline.name()) {
+        println!("\n{}", dkrrt_predictor::eval::calibration_text(&rows, Method::DeepKoopmanOnline.name()));
+    }
     let cmp = dkrrt_predictor::eval::deep_vs_edmd(&rows, 2.0);
     if !cmp.is_empty() {
         println!("\n{}", dkrrt_predictor::eval::deep_vs_edmd_text(&cmp));

@@ -9,6 +9,7 @@
 //!
 //! [`PredictorCore::observe_frame`] and [`PredictorCore::forecast_into`] allocate nothing.
 
+use dkrrt_collision::bounds::{attitude_channel, surface_sigma, AttitudeChannel};
 use dkrrt_collision::interpolate_pose;
 use dkrrt_config::Scenario;
 use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
@@ -16,6 +17,7 @@ use dkrrt_msg::{
     ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
     FORECAST_STEPS, MAX_DEBRIS,
 };
+use dkrrt_predictor::axis::AxisPrecession;
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
 use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
 use dkrrt_predictor::{
@@ -265,9 +267,10 @@ impl PredictorCore {
 
     /// Forecasts every mature track and writes them into `msg` on the common grid
     /// `t0 + k·dt, k = 1..=steps` with `t0` = the newest track time. Positions are in the base
-    /// frame; `sigma_m` = position bound + attitude bound × the shape's rotation lever (its
-    /// surface moves by at most that much under an attitude error; the attitude bound capped at
-    /// 2 rad), `sigma_pos_m` = the position bound alone (for the bounding sphere). Returns the number of tracks written (0: nothing to publish).
+    /// frame; `sigma_m` = position bound + attitude bound × the shape's rotation lever
+    /// ([`dkrrt_collision::bounds`]: a rod centred on its body origin uses its axis forecast by
+    /// precession and that forecast's calibrated bound, other shapes the full attitude
+    /// forecast and bound), `sigma_pos_m` = the position bound alone (for the bounding sphere). Returns the number of tracks written (0: nothing to publish).
     pub fn forecast_into(&mut self, msg: &mut DebrisForecast) -> usize {
         let n = self.pred.forecast(&mut self.buf);
         let h = self.buf.horizon();
@@ -283,7 +286,7 @@ impl PredictorCore {
         for i in 0..n {
             let id = self.buf.id(i);
             let (radius, shape) = self.shape(id);
-            let lever = shape.rotation_lever(radius);
+            let axis_only = attitude_channel(&shape) == AttitudeChannel::Axis;
             let tr = &mut msg.tracks[i];
             tr.id = id;
             tr.bounding_radius = radius;
@@ -297,19 +300,29 @@ impl PredictorCore {
                 let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
                 let pa = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
                 let pc = [c[0] - b[0], c[1] - b[1], c[2] - b[2]];
-                let qa = [a[6], a[7], a[8], a[9]];
-                let qc = [c[6], c[7], c[8], c[9]];
+                let mut qa = [a[6], a[7], a[8], a[9]];
+                let mut qc = [c[6], c[7], c[8], c[9]];
+                if axis_only {
+                    // A rod: its axis from the precession forecast (the spin about it is
+                    // irrelevant to the shape and poorly predictable).
+                    qa = AxisPrecession::align(&qa, &self.buf.axis(i, j));
+                    qc = AxisPrecession::align(&qc, &self.buf.axis(i, j + 1));
+                }
                 // The same interpolation the planner reads the forecast with.
                 let (p, q) = interpolate_pose(&pa, &qa, &pc, &qc, f);
                 let kk = (j + 1).min(h);
-                let att = self.buf.att_radius(i, kk).min(2.0);
-                // An attitude error θ moves a surface point by at most θ times its distance from
-                // the rotation centre: the shape's lever (0 for a centred sphere).
+                let pos = self.buf.pos_radius(i, kk);
                 tr.steps[k - 1] = ForecastStep {
                     p,
                     q,
-                    sigma_m: self.buf.pos_radius(i, kk) + att * lever,
-                    sigma_pos_m: self.buf.pos_radius(i, kk),
+                    sigma_m: surface_sigma(
+                        &shape,
+                        radius,
+                        pos,
+                        self.buf.att_radius(i, kk),
+                        self.buf.axis_radius(i, kk),
+                    ),
+                    sigma_pos_m: pos,
                 };
             }
         }

@@ -24,6 +24,7 @@ use dkrrt_debris::{
 };
 use dkrrt_koopman::debris_state::N;
 use dkrrt_koopman::FitError;
+use dkrrt_msg::DebrisShape;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -72,6 +73,16 @@ pub struct StudyRow {
     pub att_err_rad: f64,
     /// Number of (instant, track) samples.
     pub n: usize,
+    /// Calibration: share of samples whose true shape lies inside the predicted shape inflated
+    /// by the published bound (`sigma_m`, or the bounding sphere by `sigma_pos_m` where the
+    /// planner uses it; [`dkrrt_collision::bounds`]).
+    pub contained: f64,
+    /// Median published bound (the inflation the planner uses, without its margin), m.
+    pub bound_m: f64,
+    /// Median surface error (the inflation that would just contain the true shape), m.
+    pub surface_err_m: f64,
+    /// `bound_m / surface_err_m`.
+    pub bound_ratio: f64,
 }
 
 /// Size and protocol of the study.
@@ -177,6 +188,9 @@ pub struct Recording {
     pub truth: Truth,
     /// Orbital mean motion of the scene [rad/s].
     pub mean_motion: f64,
+    /// Shape descriptor and bounding radius of every object that appeared (what a perception
+    /// driver reports per id).
+    pub shapes: Vec<(u32, DebrisShape, f64)>,
 }
 
 /// The named scene with seeded perturbations of every object's initial state: position
@@ -227,12 +241,19 @@ pub fn record(
         truth: Truth { sim_dt, frames: Vec::with_capacity(steps + 1) },
         mean_motion: world.orbit().mean_motion(),
         obs: Vec::new(),
+        shapes: Vec::new(),
     };
     for k in 0..=steps {
         if k > 0 {
             world.step(sim_dt);
         }
         rec.truth.frames.push(world.debris().iter().map(|d| (d.id, state13(d))).collect());
+        for d in world.debris() {
+            if !rec.shapes.iter().any(|s| s.0 == d.id) {
+                let desc = dkrrt_collision::descriptor_of(d.props.shape.as_ref());
+                rec.shapes.push((d.id, desc, desc.bounding_radius()));
+            }
+        }
         buf.clear();
         sensor.poll(world.time(), world.debris(), &mut buf);
         rec.obs.extend_from_slice(buf.as_slice());
@@ -298,6 +319,40 @@ pub struct Errors {
     pub pos: Vec<Vec<f64>>,
     /// `att[j]`: attitude errors at `horizons[j]` [rad].
     pub att: Vec<Vec<f64>>,
+    /// `surface[j]`: (published bound, surface error) at `horizons[j]` [m] (see
+    /// [`StudyRow::contained`]).
+    pub surface: Vec<Vec<(f64, f64)>>,
+}
+
+/// The published bound of forecast `j`, `k` steps ahead, and the true shape's excess over the
+/// predicted shape as the planner reads it: `(bound, excess)`, m. The predicted pose and bound
+/// are built as the predictor process publishes them (a rod: its axis by precession).
+pub fn surface_sample(
+    buf: &ForecastBuffer,
+    j: usize,
+    k: usize,
+    shape: &DebrisShape,
+    radius: f64,
+    truth: &[f64; N],
+) -> (f64, f64) {
+    use dkrrt_collision::bounds::{
+        attitude_channel, sphere_is_tighter, surface_excess, surface_sigma, AttitudeChannel,
+    };
+    let x = buf.state(j, k);
+    let mut q = [x[6], x[7], x[8], x[9]];
+    if attitude_channel(shape) == AttitudeChannel::Axis {
+        q = crate::axis::AxisPrecession::align(&q, &buf.axis(j, k));
+    }
+    let p = [x[0], x[1], x[2]];
+    let pos = buf.pos_radius(j, k);
+    let sigma = surface_sigma(shape, radius, pos, buf.att_radius(j, k), buf.axis_radius(j, k));
+    let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
+    if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
+        let d = ((p[0] - pt[0]).powi(2) + (p[1] - pt[1]).powi(2) + (p[2] - pt[2]).powi(2)).sqrt();
+        (pos, d)
+    } else {
+        (sigma, surface_excess(shape, &p, &q, &pt, &qt))
+    }
 }
 
 /// Replay a held-out recording through a predictor and collect forecast errors at the
@@ -314,6 +369,7 @@ pub fn evaluate(
     let mut buf = ForecastBuffer::for_predictor(pred);
     out.pos.resize(horizons.len(), Vec::new());
     out.att.resize(horizons.len(), Vec::new());
+    out.surface.resize(horizons.len(), Vec::new());
     let mut next_eval = warmup;
     for (i, o) in rec.obs.iter().enumerate() {
         pred.observe(o);
@@ -335,6 +391,9 @@ pub fn evaluate(
                 let dp = (0..3).map(|i| (x[i] - truth[i]).powi(2)).sum::<f64>().sqrt();
                 out.pos[hj].push(dp);
                 out.att[hj].push(quat_angle(&x[6..10], &truth[6..10]));
+                if let Some((_, shape, r)) = rec.shapes.iter().find(|s| s.0 == buf.id(j)) {
+                    out.surface[hj].push(surface_sample(&buf, j, k, shape, *r, &truth));
+                }
             }
         }
     }
@@ -399,6 +458,10 @@ pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result
             }
             for (hj, &h) in cfg.horizons.iter().enumerate() {
                 let n = errs.pos.get(hj).map_or(0, |v| v.len());
+                let sf = errs.surface.get(hj).map_or(&[][..], |v| &v[..]);
+                let contained = sf.iter().filter(|(b, e)| e <= b).count() as f64 / sf.len().max(1) as f64;
+                let bound_m = median(&mut sf.iter().map(|s| s.0).collect::<Vec<_>>());
+                let surface_err_m = median(&mut sf.iter().map(|s| s.1).collect::<Vec<_>>());
                 rows.push(StudyRow {
                     scene: scene.clone(),
                     method: method.name().to_string(),
@@ -406,6 +469,10 @@ pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result
                     pos_err_m: errs.pos.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     att_err_rad: errs.att.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     n,
+                    contained,
+                    bound_m,
+                    surface_err_m,
+                    bound_ratio: bound_m / surface_err_m,
                 });
             }
         }
@@ -512,16 +579,56 @@ pub fn deep_vs_edmd_text(cmp: &[DeepVsEdmd]) -> String {
     s
 }
 
-/// Markdown table of study rows.
+/// Markdown table of study rows (accuracy, then the calibration of the published bound:
+/// containment, median bound, median surface error and their ratio).
 pub fn markdown_table(rows: &[StudyRow]) -> String {
-    let mut s =
-        String::from("| scene | method | horizon [s] | median pos err [m] | median att err [rad] | n |\n");
-    s.push_str("|---|---|---|---|---|---|\n");
+    let mut s = String::from(
+        "| scene | method | horizon [s] | median pos err [m] | median att err [rad] | n | contained | median bound [m] | median surface err [m] | bound / err |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.4} | {} |\n",
-            r.scene, r.method, r.horizon_s, r.pos_err_m, r.att_err_rad, r.n
+            "| {} | {} | {} | {:.4} | {:.4} | {} | {:.2}% | {:.3} | {:.3} | {:.1} |\n",
+            r.scene,
+            r.method,
+            r.horizon_s,
+            r.pos_err_m,
+            r.att_err_rad,
+            r.n,
+            100.0 * r.contained,
+            r.bound_m,
+            r.surface_err_m,
+            r.bound_ratio
         ));
     }
     s
+}
+
+/// The calibration target (≥ 99 % contained at every horizon, median bound ≤ 3× the median
+/// surface error) per scene for `method`: one line per scene, `met` / `NOT met` with the worst
+/// horizon of each.
+pub fn calibration_text(rows: &[StudyRow], method: &str) -> String {
+    let mut out = format!("calibration of {method}'s published bound (target: >= 99% contained, bound <= 3x the median error, every horizon):\n");
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows.iter().filter(|r| r.method == method) {
+        if !scenes.contains(&r.scene.as_str()) {
+            scenes.push(&r.scene);
+        }
+    }
+    for sc in scenes {
+        let rs: Vec<&StudyRow> = rows.iter().filter(|r| r.method == method && r.scene == sc).collect();
+        let worst_c = rs.iter().min_by(|a, b| a.contained.total_cmp(&b.contained)).unwrap();
+        let worst_r = rs.iter().max_by(|a, b| a.bound_ratio.total_cmp(&b.bound_ratio)).unwrap();
+        let ok = |b: bool| if b { "met" } else { "NOT met" };
+        out.push_str(&format!(
+            "  {sc}: contained >= {:.2}% ({} s) {}, bound/err <= {:.1} ({} s) {}\n",
+            100.0 * worst_c.contained,
+            worst_c.horizon_s,
+            ok(worst_c.contained >= 0.99),
+            worst_r.bound_ratio,
+            worst_r.horizon_s,
+            ok(worst_r.bound_ratio <= 3.0)
+        ));
+    }
+    out
 }

@@ -18,6 +18,8 @@
 // Index loops mirror the formulas.
 #![allow(clippy::needless_range_loop)]
 
+pub mod axis;
+pub mod calib;
 pub mod eval;
 pub mod filter;
 mod kernels;

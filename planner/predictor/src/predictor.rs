@@ -2,10 +2,12 @@
 //! Koopman models with RLS refinement, event detection and error bounds, forecasts into a
 //! caller-provided buffer. Allocation-free after construction.
 
-use crate::filter::{quat_angle, FilterConfig, TrackFilter};
+use crate::axis::AxisChannel;
+use crate::calib::ForecastScore;
+use crate::filter::{propagate, quat_angle, FilterConfig, TrackFilter};
 use crate::models::{Engine, Job, Method, Models};
 use dkrrt_debris::Observation;
-use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, ROT, TRANS};
+use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, RATE, ROT, TRANS};
 use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig, Rollout};
 use serde::Serialize;
 
@@ -53,6 +55,15 @@ pub struct PredictorConfig {
     pub event_min_obs: u32,
     /// Tracks need this many accepted observations before they are forecast.
     pub min_obs_for_forecast: u32,
+    /// Online calibration ([`crate::calib`], [`crate::axis`]): bound = floor + factor ·
+    /// score; floors `[position m, attitude rad]` (the filtered pose the forecasts are scored
+    /// against is itself this uncertain).
+    pub calib_floor: [f64; 2],
+    /// Online calibration: factor on the scores.
+    pub calib_factor: f64,
+    /// Online calibration: observations a track needs before its forecasts are kept for
+    /// scoring (earlier ones come from a filter still converging).
+    pub calib_min_obs: u32,
 }
 
 impl Default for PredictorConfig {
@@ -69,6 +80,9 @@ impl Default for PredictorConfig {
             rls_trans: RlsConfig { lambda: 0.999, p0: 1e-9, max_trace: 1e6 },
             rls_att: RlsConfig { lambda: 0.995, p0: 1.0, max_trace: 1e6 },
             rls_att_deep: RlsConfig { lambda: 0.997, p0: 100.0, max_trace: 1e8 },
+            calib_floor: [0.01, 0.02],
+            calib_factor: 1.5,
+            calib_min_obs: 50,
             event_factor: 3.0,
             event_pos_noise: 0.05,
             event_att_noise: 0.08,
@@ -159,6 +173,8 @@ struct Track {
     last_event_t: [f64; 2],
     events: u32,
     last_residual: [f64; 2],
+    axis: AxisChannel,
+    score: ForecastScore,
 }
 
 /// Read-only view of one track.
@@ -193,6 +209,8 @@ pub struct ForecastBuffer {
     states: Vec<f64>,
     pos_radius: Vec<f64>,
     att_radius: Vec<f64>,
+    axis: Vec<[f64; 3]>,
+    axis_radius: Vec<f64>,
 }
 
 impl ForecastBuffer {
@@ -207,6 +225,8 @@ impl ForecastBuffer {
             states: vec![0.0; MAX_TRACKS * h * N],
             pos_radius: vec![0.0; MAX_TRACKS * h],
             att_radius: vec![0.0; MAX_TRACKS * h],
+            axis: vec![[0.0; 3]; MAX_TRACKS * h],
+            axis_radius: vec![0.0; MAX_TRACKS * h],
         }
     }
     /// Buffer matching a predictor.
@@ -258,6 +278,16 @@ impl ForecastBuffer {
     /// Attitude error radius of forecast `i`, `k` steps ahead [rad].
     pub fn att_radius(&self, i: usize, k: usize) -> f64 {
         self.att_radius[i * self.h + k - 1]
+    }
+    /// Forecast `i`'s body z axis `k` steps ahead by its precession ([`crate::axis`]): what a
+    /// rod's (any shape symmetric about its z axis) pose is, whatever its spin about the axis.
+    pub fn axis(&self, i: usize, k: usize) -> [f64; 3] {
+        self.axis[i * self.h + k - 1]
+    }
+    /// Error bound of [`ForecastBuffer::axis`] (angle between lines), rad: calibrated online
+    /// per track, or the attitude bound while the track is too young to have scored step `k`.
+    pub fn axis_radius(&self, i: usize, k: usize) -> f64 {
+        self.axis_radius[i * self.h + k - 1]
     }
 }
 
@@ -319,6 +349,8 @@ impl DebrisPredictor {
             last_event_t: [f64::NEG_INFINITY; 2],
             events: 0,
             last_residual: [f64::NAN; 2],
+            axis: AxisChannel::new(),
+            score: ForecastScore::new(models.horizon, models.dt),
         };
         DebrisPredictor {
             engine: {
@@ -421,6 +453,9 @@ impl DebrisPredictor {
         tr.last_event_t = [f64::NEG_INFINITY; 2];
         tr.events = 0;
         tr.last_residual = [f64::NAN; 2];
+        tr.axis = AxisChannel::new();
+        tr.score.clear();
+        tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
         push_hist(tr);
     }
 
@@ -499,6 +534,14 @@ impl DebrisPredictor {
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
             self.stats.maneuvers += 1;
         }
+        tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
+        {
+            let (x, t, fr) = (tr.filter.x, tr.filter.t, self.models.frame_rate);
+            tr.score.score(o.t, |tau| {
+                let y = propagate(&x, fr, tau - t);
+                ([y[0], y[1], y[2]], [y[6], y[7], y[8], y[9]])
+            });
+        }
         tr.n_obs += 1;
         tr.last_obs_p = o.p;
         tr.last_obs_q = q;
@@ -552,6 +595,7 @@ impl DebrisPredictor {
             if ev_a {
                 tr.att_bound.grow(ra, ra / dt);
                 tr.rls_a.reset_covariance();
+                tr.axis.restart();
                 tr.last_event_t[1] = o.t;
             }
             if ev_p || ev_a {
@@ -617,10 +661,29 @@ impl DebrisPredictor {
                 _ => unreachable!(),
             }
         }
+        let (floor, factor) = (self.cfg.calib_floor, self.cfg.calib_factor);
         for (k, &i) in sel[..n].iter().enumerate() {
-            let tr = &self.tracks[i as usize];
+            let tr = &mut self.tracks[i as usize];
             tr.pos_bound.radii(&mut buf.pos_radius[k * hb..k * hb + h]);
             tr.att_bound.radii(&mut buf.att_radius[k * hb..k * hb + h]);
+            // Calibrated on this track's own published forecasts where scored; the fitted
+            // bound (with its event growth) where not yet.
+            for s in 1..=h {
+                if let Some((rp, ra)) = tr.score.radius(s, floor, factor) {
+                    buf.pos_radius[k * hb + s - 1] = rp;
+                    buf.att_radius[k * hb + s - 1] = ra;
+                }
+            }
+            if tr.n_obs >= self.cfg.calib_min_obs {
+                tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
+            }
+            let om = tr.axis.prec.omega();
+            for s in 1..=h {
+                let o = k * hb + s - 1;
+                buf.axis[o] = tr.axis.prec.axis_at(&om, s as f64 * buf.dt + tr.filter.t - tr.axis.prec.t);
+                let att = buf.att_radius[o];
+                buf.axis_radius[o] = tr.axis.radius(s, floor[1], factor).unwrap_or(att);
+            }
             buf.ids[k] = tr.id;
             buf.t0[k] = tr.filter.t;
         }

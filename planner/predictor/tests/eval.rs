@@ -18,7 +18,22 @@ fn small_study() {
         assert!(r.pos_err_m.is_finite() && r.att_err_rad.is_finite() && r.n > 20, "{r:?}");
     }
     let json = serde_json::to_string(&rows).unwrap();
-    assert!(json.contains("\"pos_err_m\""));
+    assert!(json.contains("\"pos_err_m\"") && json.contains("\"contained\""));
+    // Calibration columns: a share, positive bounds and errors, every sample scored.
+    for r in &rows {
+        assert!((0.0..=1.0).contains(&r.contained), "{r:?}");
+        assert!(r.bound_m > 0.0 && r.surface_err_m >= 0.0 && r.bound_ratio > 0.0, "{r:?}");
+    }
+    // The online-calibrated bound of the shipped method contains the true shape most of the
+    // time even in this tiny study (the README's medium study states the figures).
+    for scene in &cfg.scenes {
+        for &h in &cfg.horizons {
+            let r = row(&rows, scene, "deep-koopman-online", h);
+            assert!(r.contained >= 0.9, "{r:?}");
+        }
+    }
+    let cal = dkrrt_predictor::eval::calibration_text(&rows, "deep-koopman-online");
+    assert!(cal.contains("tumbling-rods: contained >= "), "{cal}");
     // Constant velocity: errors grow with the horizon on the tumbling scenes.
     for scene in ["tumbling-rods", "sparse-slow"] {
         for w in cfg.horizons.windows(2) {
@@ -47,6 +62,10 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         pos_err_m: pos,
         att_err_rad: att,
         n: 100,
+        contained: 1.0,
+        bound_m: 0.1,
+        surface_err_m: 0.05,
+        bound_ratio: 2.0,
     };
     let rows = vec![
         r("tumbling-rods", "edmd-poly", 2.0, 0.04, 0.6),

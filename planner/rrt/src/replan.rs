@@ -307,6 +307,19 @@ impl Replanner {
             for i in 0..self.world.len() {
                 let (p, _, s, _, sph) = self.world.pose_at(i, t_now + 6.0);
                 let (p0, _, s0, _, _) = self.world.pose_at(i, t_now);
+                let sg: Vec<String> = [1.0, 2.0, 3.0, 4.0]
+                    .iter()
+                    .map(|d| {
+                        let (_, _, s, sp, sph) = self.world.pose_at(i, t_now + d);
+                        format!("{s:.2}/{sp:.2}{}", if sph { "S" } else { "" })
+                    })
+                    .collect();
+                eprintln!(
+                    "  track {} kind {} sigma/pos +1..4: {:?}",
+                    self.world.id(i),
+                    self.world.shape(i).kind,
+                    sg
+                );
                 eprintln!(
                     "  track {} now {:?} σ {:.3} | +6 s {:?} σ {:.3} sphere {}",
                     self.world.id(i),

@@ -194,7 +194,7 @@ impl WorldInTime {
             let base = self.margin + extra;
             // The shape inflated by its surface bound, or the bounding sphere by the position
             // bound when the attitude is too uncertain for the shape to be the tighter one.
-            let o = if sphere || sigma - sigma_pos >= tr.lever {
+            let o = if sphere || dkrrt_collision::bounds::sphere_is_tighter(sigma, sigma_pos, tr.lever) {
                 Obstacle::from_desc(tr.id, &DebrisShape::default(), tr.radius, &p, &q, sigma_pos + base)
             } else {
                 Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &p, &q, sigma + base)
@@ -209,6 +209,11 @@ impl WorldInTime {
     /// shape-is-its-bounding-sphere).
     pub fn pose_at(&self, i: usize, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
         pose_at(&self.tracks[i], t)
+    }
+
+    /// Shape of track `i`.
+    pub fn shape(&self, i: usize) -> DebrisShape {
+        self.tracks[i].shape
     }
 
     /// Id of track `i`.

@@ -15,6 +15,7 @@
 //!
 //! Everything here is allocation-free (tested with a counting allocator).
 
+pub mod bounds;
 pub mod pose;
 
 use dkrrt_model::{ArmModel, JVec, NJ};

@@ -1,0 +1,403 @@
+//! The symmetry axis of a tumbling rod, forecast by its precession.
+//!
+//! A torque-free body with two equal principal moments (`I_x = I_y`: every rod, capsule or
+//! cylinder) has a body axis `z` that rotates about the fixed angular momentum `L` at the
+//! constant rate `|L| / I_x`: with `ω = ω_⊥ + ω_z z` and `L = I_x ω_⊥ + I_z ω_z z`,
+//! `ż = ω × z = ω_⊥ × z = (L / I_x) × z`. So the axis follows `ż = Ω × z` with one constant
+//! vector `Ω`, whatever the spin about the axis does (for a thin rod that spin is fast and
+//! erratic, `I_z ≪ I_x`, and it is what makes a full-attitude forecast of a rod poor). The
+//! spin does not change a capsule's shape, so the axis is all a planner needs.
+//!
+//! [`AxisPrecession`] estimates `Ω` by exponentially weighted least squares over the filtered
+//! axis directions: each sample contributes `P_z Ω = z × ż` (`P_z = I − z zᵀ`: the component
+//! of `Ω` along `z` is invisible at one instant, the axis's motion around its cone fixes it),
+//! with `ż` from chords of the axis over a fixed lag and a small ridge toward the filter's
+//! instantaneous rate. The forecast turns the current axis about `Ω` (Rodrigues). Nothing
+//! here allocates.
+//!
+//! The bound on this forecast's error is calibrated online per track ([`AxisPrecession`]
+//! keeps its own past forecasts and scores them when the horizon has passed).
+
+/// Samples kept for the chord differences (at 50 Hz: 0.3 s).
+const RING: usize = 16;
+
+/// Online estimate of an axis's precession vector `Ω` (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisPrecession {
+    a: [[f64; 3]; 3],
+    b: [f64; 3],
+    /// Time of the newest sample, s.
+    pub t: f64,
+    /// Newest axis direction (unit).
+    pub z: [f64; 3],
+    ring_t: [f64; RING],
+    ring_z: [[f64; 3]; RING],
+    head: usize,
+    len: usize,
+    /// Samples absorbed.
+    pub n: u32,
+    w_rate: [f64; 3],
+}
+
+/// The body z axis of the attitude `q` (body → frame, `(w, x, y, z)`).
+pub fn body_z(q: &[f64]) -> [f64; 3] {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    [2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)]
+}
+
+/// Angle between two axes of an end-to-end symmetric shape (a line: `u` and `−u` are the
+/// same), rad, in `[0, π/2]`.
+pub fn line_angle(u: &[f64; 3], v: &[f64; 3]) -> f64 {
+    let d = (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]).abs();
+    let c = cross(u, v);
+    let s = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+    s.atan2(d)
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn rotate_body(q: &[f64], v: &[f64; 3]) -> [f64; 3] {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    let u = [x, y, z];
+    let t = cross(&u, v).map(|c| 2.0 * c);
+    let ut = cross(&u, &t);
+    [v[0] + w * t[0] + ut[0], v[1] + w * t[1] + ut[1], v[2] + w * t[2] + ut[2]]
+}
+
+/// `v` turned by the rotation vector `r` (Rodrigues).
+pub fn rotate(r: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+    let th = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+    if th < 1e-12 {
+        return *v;
+    }
+    let k = r.map(|c| c / th);
+    let (s, c) = th.sin_cos();
+    let kv = cross(&k, v);
+    let kd = k[0] * v[0] + k[1] * v[1] + k[2] * v[2];
+    [0, 1, 2].map(|i| v[i] * c + kv[i] * s + k[i] * kd * (1.0 - c))
+}
+
+impl Default for AxisPrecession {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl AxisPrecession {
+    /// Forgetting time constant of the least squares, s.
+    pub const TAU: f64 = 2.0;
+    /// Chord lag for the axis rate, s (the oldest ring sample at least this old is used).
+    pub const LAG: f64 = 0.15;
+    /// Ridge toward the filter's instantaneous rate (relative weight).
+    pub const RIDGE: f64 = 1e-3;
+
+    pub fn new() -> Self {
+        AxisPrecession {
+            a: [[0.0; 3]; 3],
+            b: [0.0; 3],
+            t: f64::NAN,
+            z: [0.0, 0.0, 1.0],
+            ring_t: [f64::NAN; RING],
+            ring_z: [[0.0; 3]; RING],
+            head: 0,
+            len: 0,
+            n: 0,
+            w_rate: [0.0; 3],
+        }
+    }
+
+    /// Absorbs a filtered attitude `q` (body → frame) at time `t` with the filter's body rate
+    /// `w_body` (used only as the ridge's prior). Samples not newer than the last are ignored.
+    pub fn update(&mut self, t: f64, q: &[f64], w_body: &[f64]) {
+        if !t.is_finite() || (self.t.is_finite() && t <= self.t) {
+            return;
+        }
+        let z = body_z(q);
+        self.w_rate = rotate_body(q, &[w_body[0], w_body[1], w_body[2]]);
+        // Chord to the newest ring sample at least LAG old.
+        let mut chord = None;
+        for j in 0..self.len {
+            let i = (self.head + RING - 1 - j) % RING;
+            let dt = t - self.ring_t[i];
+            if dt >= Self::LAG {
+                chord = Some((dt, self.ring_z[i]));
+                break;
+            }
+        }
+        if let Some((dt, z0)) = chord {
+            // Midpoint direction and rate of the chord.
+            let m = [z[0] + z0[0], z[1] + z0[1], z[2] + z0[2]];
+            let mn = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt().max(1e-12);
+            let zm = m.map(|c| c / mn);
+            let zd = [(z[0] - z0[0]) / dt, (z[1] - z0[1]) / dt, (z[2] - z0[2]) / dt];
+            let lam = (-(t - self.t) / Self::TAU).exp();
+            let rhs = cross(&zm, &zd);
+            for r in 0..3 {
+                for c in 0..3 {
+                    let p = if r == c { 1.0 } else { 0.0 } - zm[r] * zm[c];
+                    self.a[r][c] = lam * self.a[r][c] + p;
+                }
+                self.b[r] = lam * self.b[r] + rhs[r];
+            }
+            self.n += 1;
+        }
+        self.ring_t[self.head] = t;
+        self.ring_z[self.head] = z;
+        self.head = (self.head + 1) % RING;
+        self.len = (self.len + 1).min(RING);
+        self.t = t;
+        self.z = z;
+    }
+
+    /// The precession vector `Ω` (frame axes), rad/s: the least-squares solution with a ridge
+    /// toward the filter's rate (which alone it is before the first chord).
+    pub fn omega(&self) -> [f64; 3] {
+        let tr = self.a[0][0] + self.a[1][1] + self.a[2][2];
+        let eps = Self::RIDGE * tr.max(1.0);
+        let mut m = self.a;
+        let mut r = self.b;
+        for i in 0..3 {
+            m[i][i] += eps;
+            r[i] += eps * self.w_rate[i];
+        }
+        solve3(&m, &r).unwrap_or(self.w_rate)
+    }
+
+    /// The axis `dt` seconds after the newest sample.
+    pub fn axis_at(&self, omega: &[f64; 3], dt: f64) -> [f64; 3] {
+        rotate(&omega.map(|w| w * dt), &self.z)
+    }
+
+    /// Rotates the attitude `q` (body → frame) so that its body z axis lies along `axis` by the
+    /// smallest rotation (the spin about the axis is kept as `q` has it).
+    pub fn align(q: &[f64], axis: &[f64; 3]) -> [f64; 4] {
+        let z = body_z(q);
+        let c = cross(&z, axis);
+        let d = z[0] * axis[0] + z[1] * axis[1] + z[2] * axis[2];
+        // Quaternion of the rotation z → axis: (1 + d, c), normalised.
+        let mut r = [1.0 + d, c[0], c[1], c[2]];
+        let n = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
+        if n < 1e-9 {
+            // Opposite: the same line for a symmetric shape.
+            return [q[0], q[1], q[2], q[3]];
+        }
+        r.iter_mut().for_each(|x| *x /= n);
+        quat_mul(&r, q)
+    }
+}
+
+fn quat_mul(a: &[f64; 4], b: &[f64]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+fn solve3(m: &[[f64; 3]; 3], r: &[f64; 3]) -> Option<[f64; 3]> {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if det.abs() < 1e-15 {
+        return None;
+    }
+    let col = |j: usize| {
+        let mut a = *m;
+        for i in 0..3 {
+            a[i][j] = r[i];
+        }
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    Some([col(0) / det, col(1) / det, col(2) / det])
+}
+
+/// Longest forecast (steps) [`AxisChannel`] calibrates.
+pub const MAX_STEPS: usize = 64;
+
+/// One track's axis forecast and its online calibration: [`AxisPrecession`] plus its own
+/// forecasts taken every model step `dt`, each scored against the filtered axis when `k`
+/// steps have passed. Per step `k` the score is a decaying maximum (time constant
+/// [`AxisChannel::STAT_TAU`]) of the angles seen; the bound `k` steps ahead is
+/// `floor + factor · max_{j ≤ k} score_j`. Steps not yet scored since the track began (a
+/// young track) have no calibrated bound: the caller falls back to the attitude model's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisChannel {
+    /// The precession estimate.
+    pub prec: AxisPrecession,
+    snap_t: [f64; MAX_STEPS + 1],
+    snap_z: [[f64; 3]; MAX_STEPS + 1],
+    snap_w: [[f64; 3]; MAX_STEPS + 1],
+    head: usize,
+    len: usize,
+    score: [f64; MAX_STEPS],
+    scored: [bool; MAX_STEPS],
+    last_round: f64,
+}
+
+impl Default for AxisChannel {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl AxisChannel {
+    /// Memory of the per-step scores, s.
+    pub const STAT_TAU: f64 = 20.0;
+    /// Chords the precession estimate needs before its forecasts are scored and its bound is
+    /// used (at 50 Hz: 1 s); before, the caller uses the attitude model's bound.
+    pub const MATURE: u32 = 50;
+
+    pub fn new() -> Self {
+        AxisChannel {
+            prec: AxisPrecession::new(),
+            snap_t: [f64::NAN; MAX_STEPS + 1],
+            snap_z: [[0.0; 3]; MAX_STEPS + 1],
+            snap_w: [[0.0; 3]; MAX_STEPS + 1],
+            head: 0,
+            len: 0,
+            score: [0.0; MAX_STEPS],
+            scored: [false; MAX_STEPS],
+            last_round: f64::NAN,
+        }
+    }
+
+    /// Absorbs a filtered attitude (see [`AxisPrecession::update`]); every `dt` seconds it
+    /// scores its earlier forecasts up to `h` steps old and takes a new one.
+    pub fn update(&mut self, t: f64, q: &[f64], w_body: &[f64], dt: f64, h: usize) {
+        let before = self.prec.t;
+        self.prec.update(t, q, w_body);
+        if self.prec.t == before || dt.is_nan() || dt <= 0.0 {
+            return;
+        }
+        let h = h.min(MAX_STEPS);
+        if self.last_round.is_finite() && t - self.last_round < dt - 1e-9 {
+            return;
+        }
+        if self.last_round.is_finite() {
+            let f = (-(t - self.last_round) / Self::STAT_TAU).exp();
+            self.score.iter_mut().for_each(|s| *s *= f);
+        }
+        self.last_round = t;
+        let z = self.prec.z;
+        for j in 0..self.len {
+            let i = (self.head + MAX_STEPS - j) % (MAX_STEPS + 1);
+            let tau = t - self.snap_t[i];
+            let k = (tau / dt).round() as usize;
+            if k == 0 || k > h {
+                continue;
+            }
+            let p = rotate(&self.snap_w[i].map(|w| w * tau), &self.snap_z[i]);
+            let e = line_angle(&p, &z);
+            self.score[k - 1] = self.score[k - 1].max(e);
+            self.scored[k - 1] = true;
+        }
+        if self.prec.n < Self::MATURE {
+            return;
+        }
+        self.snap_t[self.head] = t;
+        self.snap_z[self.head] = z;
+        self.snap_w[self.head] = self.prec.omega();
+        self.head = (self.head + 1) % (MAX_STEPS + 1);
+        self.len = (self.len + 1).min(MAX_STEPS + 1);
+    }
+
+    /// Calibrated bound `k` steps ahead (`1 ≤ k`), rad, or `None` if step `k` has not been
+    /// scored yet.
+    pub fn radius(&self, k: usize, floor: f64, factor: f64) -> Option<f64> {
+        let k = k.clamp(1, MAX_STEPS);
+        if !self.scored[k - 1] || self.prec.n < Self::MATURE {
+            return None;
+        }
+        let m = self.score[..k].iter().fold(0.0f64, |a, &b| a.max(b));
+        Some(floor + factor * m)
+    }
+
+    /// Forget the precession estimate and the forecasts made with it (after an attitude
+    /// event), keep the scores.
+    pub fn restart(&mut self) {
+        self.prec = AxisPrecession::new();
+        self.len = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    /// A rod whose axis precesses about `om` while it spins about itself at a rate that
+    /// changes (as a thin rod's does): attitude at `t`.
+    fn rod(t: f64) -> [f64; 4] {
+        let om = Vector3::new(0.3, -0.5, 0.2);
+        let q0 = UnitQuaternion::from_scaled_axis(Vector3::new(0.4, 0.1, -0.7));
+        let q = UnitQuaternion::from_scaled_axis(om * t)
+            * q0
+            * UnitQuaternion::from_scaled_axis(Vector3::z() * 2.0 * t * t);
+        [q.w, q.i, q.j, q.k]
+    }
+
+    #[test]
+    fn precession_forecasts_the_axis_whatever_the_spin() {
+        let mut ax = AxisPrecession::new();
+        for i in 0..200 {
+            let t = i as f64 * 0.02;
+            ax.update(t, &rod(t), &[0.0; 3]);
+        }
+        let o = ax.omega();
+        let t_last = 199.0 * 0.02;
+        for (dt, tol) in [(0.5, 0.005), (2.0, 0.01), (4.0, 0.02)] {
+            let err = line_angle(&ax.axis_at(&o, dt), &body_z(&rod(t_last + dt)));
+            assert!(err < tol, "{dt} s: {err}");
+        }
+        // The full attitude is not predictable this way (the spin): the axis is all we claim.
+        let q = AxisPrecession::align(&rod(t_last), &ax.axis_at(&o, 2.0));
+        assert!(line_angle(&body_z(&q), &body_z(&rod(t_last + 2.0))) < 0.01);
+    }
+
+    #[test]
+    fn channel_bound_is_calibrated_online_and_absent_while_young() {
+        let (dt, h) = (0.1, 40);
+        let mut ch = AxisChannel::new();
+        let mut seen_young = false;
+        for i in 0..500 {
+            let t = i as f64 * 0.02;
+            ch.update(t, &rod(t), &[0.0; 3], dt, h);
+            if t < 1.0 {
+                assert!(ch.radius(1, 0.02, 1.5).is_none(), "young at {t}");
+                seen_young = true;
+            }
+        }
+        assert!(seen_young);
+        // Exact precession: a small bound at every horizon scored, containing the error of
+        // the current forecast.
+        let t_last = 499.0 * 0.02;
+        let o = ch.prec.omega();
+        for k in [1, 10, 40] {
+            let r = ch.radius(k, 0.02, 1.5).unwrap();
+            let err = line_angle(&ch.prec.axis_at(&o, k as f64 * dt), &body_z(&rod(t_last + k as f64 * dt)));
+            assert!(r < 0.2 && r >= err, "k {k}: bound {r}, error {err}");
+        }
+        // After a sudden change of the precession the short-horizon scores rise, and every
+        // longer horizon with them.
+        let mut ch2 = ch;
+        for i in 500..560 {
+            let t = i as f64 * 0.02;
+            let q = UnitQuaternion::from_scaled_axis(Vector3::x() * 1.5 * (t - 10.0))
+                * UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                    rod(t)[0],
+                    rod(t)[1],
+                    rod(t)[2],
+                    rod(t)[3],
+                ));
+            ch2.update(t, &[q.w, q.i, q.j, q.k], &[0.0; 3], dt, h);
+        }
+        assert!(ch2.radius(40, 0.02, 1.5).unwrap() >= ch2.radius(1, 0.02, 1.5).unwrap());
+        assert!(ch2.radius(40, 0.02, 1.5).unwrap() > 2.0 * ch.radius(40, 0.02, 1.5).unwrap());
+    }
+}

@@ -1,0 +1,221 @@
+//! How a forecast's uncertainty becomes an inflated shape, and how far a true shape lies
+//! outside a predicted one. One place for the rules the predictor publishes with, the
+//! planner reads with and `dkrrt predict-eval` checks with.
+//!
+//! * A forecast step carries `sigma_pos_m` (bound on the body origin's position error) and
+//!   `sigma_m` = `sigma_pos_m` + θ · lever, where θ bounds the attitude error that matters
+//!   for the shape ([`attitude_channel`]) and the lever is the farthest shape point from the
+//!   body origin ([`DebrisShape::rotation_lever`]): a rotation by θ moves a point at distance
+//!   ℓ by `2ℓ sin(θ/2) ≤ θℓ`.
+//! * The planner inflates the predicted shape by `sigma_m` (+ margin), or uses the bounding
+//!   sphere inflated by `sigma_pos_m` when that is no larger ([`sphere_is_tighter`]).
+//! * [`surface_excess`] is the smallest inflation of the predicted shape that contains the
+//!   true one: the forecast is *contained* when it is ≤ the inflation used.
+
+use crate::pose::quat_rotate;
+use dkrrt_msg::{DebrisShape, ShapeKind};
+
+/// Which attitude error a shape's inflation needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AttitudeChannel {
+    /// No attitude dependence (a sphere about the body origin, or an unknown shape that is
+    /// its bounding sphere).
+    None,
+    /// Only the line of the body z axis (a capsule along z centred on the body origin): its
+    /// spin about the axis and a half turn end over end leave the shape unchanged.
+    Axis,
+    /// The full attitude.
+    Full,
+}
+
+/// The attitude error `shape` needs (see [`AttitudeChannel`]).
+pub fn attitude_channel(shape: &DebrisShape) -> AttitudeChannel {
+    let o = &shape.offset;
+    match ShapeKind::from_u32(shape.kind) {
+        Some(ShapeKind::Sphere) if o.iter().all(|v| *v == 0.0) => AttitudeChannel::None,
+        Some(ShapeKind::Capsule) if o.iter().all(|v| *v == 0.0) => AttitudeChannel::Axis,
+        Some(ShapeKind::Unknown) | None => AttitudeChannel::None,
+        _ => AttitudeChannel::Full,
+    }
+}
+
+/// Attitude bounds above this are not used (rad): past it the bounding sphere is tighter for
+/// every shape.
+pub const MAX_ATTITUDE_BOUND: f64 = 2.0;
+
+/// `sigma_m` of a forecast step: the position bound plus the attitude bound of the shape's
+/// channel (`att_full` or `att_axis`, rad) times its lever.
+pub fn surface_sigma(
+    shape: &DebrisShape,
+    bounding_radius: f64,
+    pos: f64,
+    att_full: f64,
+    att_axis: f64,
+) -> f64 {
+    let th = match attitude_channel(shape) {
+        AttitudeChannel::None => 0.0,
+        AttitudeChannel::Axis => att_axis,
+        AttitudeChannel::Full => att_full,
+    };
+    pos + th.min(MAX_ATTITUDE_BOUND) * shape.rotation_lever(bounding_radius)
+}
+
+/// Whether the bounding sphere (radius + `sigma_pos`) is no larger than the shape inflated by
+/// `sigma` (its lever + `sigma` ≥ its radius + `sigma_pos`, with lever ≈ radius).
+pub fn sphere_is_tighter(sigma: f64, sigma_pos: f64, lever: f64) -> bool {
+    sigma - sigma_pos >= lever
+}
+
+/// The smallest `s` such that the true shape (pose `p_true`, `q_true`) lies inside the
+/// predicted one (`p_pred`, `q_pred`) inflated by `s`, m: for a sphere the centre distance,
+/// for a capsule the larger distance of the true axis's end points to the predicted axis
+/// segment, for a box the largest distance of a true corner to the predicted box (all exact:
+/// the inflated predicted shape is convex and the true shape is the hull of those points,
+/// swept by the same radius). Unknown shapes: the centre distance (bounding spheres).
+pub fn surface_excess(
+    shape: &DebrisShape,
+    p_pred: &[f64; 3],
+    q_pred: &[f64; 4],
+    p_true: &[f64; 3],
+    q_true: &[f64; 4],
+) -> f64 {
+    let at = |p: &[f64; 3], q: &[f64; 4], local: &[f64; 3]| {
+        let l = [local[0] + shape.offset[0], local[1] + shape.offset[1], local[2] + shape.offset[2]];
+        let r = quat_rotate(q, &l);
+        [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
+    };
+    let d = &shape.dims;
+    match ShapeKind::from_u32(shape.kind) {
+        Some(ShapeKind::Capsule) => {
+            let (a, b) = (at(p_pred, q_pred, &[0.0, 0.0, -d[0]]), at(p_pred, q_pred, &[0.0, 0.0, d[0]]));
+            let e0 = crate::seg_point(&a, &b, &at(p_true, q_true, &[0.0, 0.0, -d[0]]));
+            let e1 = crate::seg_point(&a, &b, &at(p_true, q_true, &[0.0, 0.0, d[0]]));
+            e0.max(e1)
+        }
+        Some(ShapeKind::Box) => {
+            let mut worst: f64 = 0.0;
+            for c in 0..8 {
+                let s = |i: usize| if c >> i & 1 == 1 { d[i] } else { -d[i] };
+                let x = at(p_true, q_true, &[s(0), s(1), s(2)]);
+                // Into the predicted box's frame: distance to the box.
+                let o = at(p_pred, q_pred, &[0.0, 0.0, 0.0]);
+                let rel = [x[0] - o[0], x[1] - o[1], x[2] - o[2]];
+                let qc = [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]];
+                let l = quat_rotate(&qc, &rel);
+                let e = (0..3).map(|i| (l[i].abs() - d[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
+                worst = worst.max(e);
+            }
+            worst
+        }
+        _ => {
+            let (a, b) = (at(p_pred, q_pred, &[0.0; 3]), at(p_true, q_true, &[0.0; 3]));
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shape(kind: ShapeKind, dims: [f64; 3], offset: [f64; 3]) -> DebrisShape {
+        DebrisShape { kind: kind as u32, dims, offset, ..Default::default() }
+    }
+
+    #[test]
+    fn channels() {
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3])),
+            AttitudeChannel::None
+        );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.1, 0.0, 0.0])),
+            AttitudeChannel::Full
+        );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.0; 3])),
+            AttitudeChannel::Axis
+        );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.0, 0.0, 0.3])),
+            AttitudeChannel::Full
+        );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.2, 0.0, 0.0])),
+            AttitudeChannel::Full
+        );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Box, [1.0, 0.5, 0.1], [0.0; 3])),
+            AttitudeChannel::Full
+        );
+        let rod = shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.0; 3]);
+        assert!((surface_sigma(&rod, 1.05, 0.1, 0.9, 0.2) - 0.3).abs() < 1e-12);
+        let b = shape(ShapeKind::Box, [1.0, 0.0, 0.0], [0.0; 3]);
+        assert!((surface_sigma(&b, 1.0, 0.1, 5.0, 0.0) - 2.1).abs() < 1e-12, "attitude bound capped");
+    }
+
+    #[test]
+    fn excess_of_known_errors() {
+        let id = [1.0, 0.0, 0.0, 0.0];
+        let p0 = [0.0; 3];
+        // Rod of half length 1 turned by θ about x: its ends move by 2 sin(θ/2) off the old
+        // axis's ends, and their distance to the old segment is sin θ.
+        let rod = shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.0; 3]);
+        let th: f64 = 0.3;
+        let q = [(th / 2.0).cos(), (th / 2.0).sin(), 0.0, 0.0];
+        assert!((surface_excess(&rod, &p0, &id, &p0, &q) - th.sin()).abs() < 1e-12);
+        // Spin about its own axis: nothing moves.
+        let spin = [(0.7f64).cos(), 0.0, 0.0, (0.7f64).sin()];
+        assert!(surface_excess(&rod, &p0, &id, &p0, &spin) < 1e-12);
+        // Upside down: the same line.
+        assert!(surface_excess(&rod, &p0, &id, &p0, &[0.0, 1.0, 0.0, 0.0]) < 1e-12);
+        // Shift along the axis by 0.2: one end 0.2 past the old end.
+        assert!((surface_excess(&rod, &p0, &id, &[0.0, 0.0, 0.2], &id) - 0.2).abs() < 1e-12);
+        // Box: turned by 90° about z, a 2×1 footprint sticks out by 0.5 along y.
+        let b = shape(ShapeKind::Box, [1.0, 0.5, 0.1], [0.0; 3]);
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((surface_excess(&b, &p0, &id, &p0, &[s, 0.0, 0.0, s]) - 0.5).abs() < 1e-9);
+        assert!((surface_excess(&b, &p0, &id, &[0.3, 0.0, 0.0], &id) - 0.3).abs() < 1e-12);
+        // Sphere: centre distance.
+        let sp = shape(ShapeKind::Sphere, [0.4, 0.0, 0.0], [0.0; 3]);
+        assert!((surface_excess(&sp, &p0, &id, &[0.0, 0.3, 0.4], &spin) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sigma_contains_any_error_within_the_bounds() {
+        // surface_sigma with the true errors as bounds always contains: excess ≤ sigma.
+        let shapes = [
+            shape(ShapeKind::Capsule, [0.8, 0.05, 0.0], [0.0; 3]),
+            shape(ShapeKind::Capsule, [0.8, 0.05, 0.0], [0.0, 0.0, 0.2]),
+            shape(ShapeKind::Box, [0.6, 0.3, 0.05], [0.1, -0.2, 0.0]),
+            shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3]),
+        ];
+        let mut seed = 1u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..2000 {
+            let norm = |q: [f64; 4]| {
+                let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+                q.map(|v| v / n)
+            };
+            let qp = norm([rnd(), rnd(), rnd(), rnd()]);
+            let qt =
+                norm([qp[0] + 0.3 * rnd(), qp[1] + 0.3 * rnd(), qp[2] + 0.3 * rnd(), qp[3] + 0.3 * rnd()]);
+            let pp = [rnd(), rnd(), rnd()];
+            let pt = [pp[0] + 0.2 * rnd(), pp[1] + 0.2 * rnd(), pp[2] + 0.2 * rnd()];
+            let dp = ((pp[0] - pt[0]).powi(2) + (pp[1] - pt[1]).powi(2) + (pp[2] - pt[2]).powi(2)).sqrt();
+            let full = crate::quat_angle(&qp, &qt);
+            let zp = quat_rotate(&qp, &[0.0, 0.0, 1.0]);
+            let zt = quat_rotate(&qt, &[0.0, 0.0, 1.0]);
+            let axis = (zp[0] * zt[0] + zp[1] * zt[1] + zp[2] * zt[2]).abs().min(1.0).acos();
+            for s in &shapes {
+                let r = s.bounding_radius();
+                let sig = surface_sigma(s, r, dp, full, axis);
+                let e = surface_excess(s, &pp, &qp, &pt, &qt);
+                assert!(e <= sig + 1e-9, "{s:?}: excess {e} > sigma {sig}");
+            }
+        }
+    }
+}
