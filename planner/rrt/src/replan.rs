@@ -35,6 +35,9 @@ pub struct ReplanConfig {
     pub commit_s: f64,
     /// Obstacles are inflated by σ + this margin, m.
     pub margin_m: f64,
+    /// While moving, a predicted conflict of the active plan further ahead than this is not
+    /// yet acted on by leaving the plan (a better one is still sought every cycle), s.
+    pub move_react_s: f64,
     /// Planner iterations per cycle (the work budget lockstep runs use).
     pub iterations: u32,
     /// With debris expected, wait this long (plant time) for a first forecast before moving.
@@ -55,6 +58,7 @@ impl Default for ReplanConfig {
             deadline_s: 0.05,
             commit_s: 0.06,
             margin_m: 0.05,
+            move_react_s: 3.0,
             iterations: 300,
             forecast_wait_s: 2.0,
             goal_tol_rad: 0.01,
@@ -284,7 +288,7 @@ impl Replanner {
         self.status = st;
         if self.debug {
             eprintln!(
-                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} edges={} configs={} first={:?} clear={:.3} {:.1} ms",
+                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} edges={} configs={} first={:?} clear={:.3} {:.1} ms reach={:?} ends={:.2}",
                 self.world.len(),
                 tracker.mode,
                 self.current.traj_id,
@@ -295,7 +299,9 @@ impl Replanner {
                 self.last_plan.configs_checked,
                 self.last_plan.first_solution_iter,
                 st.min_predicted_clearance_m,
-                dt as f64 * 1e-6
+                dt as f64 * 1e-6,
+                self.current_reach,
+                self.current.start_ns as f64 * 1e-9 + self.current.duration_s
             );
         }
         if self.debug && self.stats.cycles % 20 == 3 {
@@ -303,6 +309,24 @@ impl Replanner {
                 let t = t_now + dt;
                 let c = self.planner.checker.clearance_at(&self.world, q_meas, t, 0.0, f64::NEG_INFINITY);
                 eprintln!("  rest clearance at +{dt}: {c:.3}");
+            }
+            if let Some(g) = self.goal {
+                let gc: Vec<String> = [0.0, 1.0, 2.0, 3.0, 4.0, 6.0]
+                    .iter()
+                    .map(|dt| {
+                        format!(
+                            "{:.2}",
+                            self.planner.checker.clearance_at(
+                                &self.world,
+                                &g,
+                                t_now + dt,
+                                0.0,
+                                f64::NEG_INFINITY
+                            )
+                        )
+                    })
+                    .collect();
+                eprintln!("  goal clearance at +0,1,2,3,4,6: {gc:?}");
             }
             for i in 0..self.world.len() {
                 let (p, _, s, _, sph) = self.world.pose_at(i, t_now + 6.0);
@@ -356,18 +380,22 @@ impl Replanner {
         let following = cur_id != 0 && tracker.traj_id == cur_id;
         let cur_done = cur_id != 0 && self.current.time_of((t_now * 1e9) as u64) >= self.current.duration_s;
         // Is the active plan still valid from now on?
-        let cur_valid = if cur_id != 0 && (following || cur_done || tracker.mode == ControllerMode::Track) {
-            let c = check_message_at(&mut self.planner, &self.world, &self.current, t_now, t_end);
-            st.min_predicted_clearance_m = c.min_clearance;
-            // At rest at the end of the plan, a predicted conflict further ahead than
-            // `rest_react_s` is waited on: newer forecasts (smaller bounds) decide, rather than
-            // leaving a configuration that is clear now for one found in a hurry.
-            c.ok || (cur_done && c.t_fail > t_now + self.cfg.rest_react_s)
-        } else {
-            false
-        };
+        let (cur_valid, cur_clean) =
+            if cur_id != 0 && (following || cur_done || tracker.mode == ControllerMode::Track) {
+                let c = check_message_at(&mut self.planner, &self.world, &self.current, t_now, t_end);
+                st.min_predicted_clearance_m = c.min_clearance;
+                // A predicted conflict further ahead than the reaction time is not acted on by
+                // leaving the plan: newer forecasts (smaller bounds) decide, rather than leaving
+                // a motion that is clear for now for one found in a hurry. At rest at the end of
+                // the plan that is `rest_react_s`; while moving `move_react_s`, and a plan that is
+                // clear all the way is still sought every cycle.
+                let react = if cur_done { self.cfg.rest_react_s } else { self.cfg.move_react_s };
+                (c.ok || c.t_fail > t_now + react, c.ok)
+            } else {
+                (false, false)
+            };
         let reaches_goal = self.current_reach == Some(Reach::Goal);
-        if cur_valid && reaches_goal && !goal_changed {
+        if cur_valid && (cur_clean || cur_done) && reaches_goal && !goal_changed {
             return false;
         }
         // While a valid plan (an escape, or the rest) is kept and the goal is out of reach,
@@ -414,7 +442,7 @@ impl Replanner {
             // The message the tracker will follow, checked once more before it goes out.
             let look = self.planner.cfg.lookahead_s;
             let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_c, t_c + look);
-            let better = !cur_valid || !reaches_goal || goal_changed || p.reach == Reach::Goal;
+            let better = !cur_clean || !reaches_goal || goal_changed || p.reach == Reach::Goal;
             if ok && better && !(cur_valid && p.reach == Reach::Escape) {
                 self.accept(out, p.reach);
                 st.fallback = if p.reach == Reach::Escape {

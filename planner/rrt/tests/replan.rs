@@ -166,3 +166,43 @@ fn a_planning_cycle_allocates_nothing_after_warm_up() {
     assert!(rp.stats.cycles >= 40);
     assert_eq!((st.allocs, st.reallocs), (0, 0), "{st:?}");
 }
+
+/// A sphere swallowing the whole arm that arrives from far away at `arrive_s` after `t0_ns`
+/// (20 m/s along x).
+fn arriving(t0_ns: u64, arrive_s: f64) -> Box<DebrisForecast> {
+    let mut f = forecast(t0_ns, [0.5, 0.5, 0.5], 6.0);
+    for k in 0..40 {
+        let t = 0.1 * (k + 1) as f64;
+        f.tracks[0].steps[k].p = [0.5 + 20.0 * (arrive_s - t), 0.5, 0.5];
+    }
+    f
+}
+
+#[test]
+fn a_far_conflict_keeps_the_moving_plan_a_near_one_brakes() {
+    let rc = ReplanConfig { forecast_wait_s: 0.0, iterations: 20, ..ReplanConfig::default() };
+    let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    assert!(rp.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out).publish);
+    let first = *out;
+    let track = TrackerView { mode: ControllerMode::Track, traj_id: first.traj_id };
+    // 1 s in, moving: the arm will be swallowed ~3.4 s from now (beyond `move_react_s` = 3 s)
+    // whatever it does: the plan is kept (no plan, clean or not, is found) and nothing is
+    // published.
+    let now = 1_000_000_000u64;
+    let q_now = first.sample(first.time_of(now)).p;
+    let d = rp.step(now, &q_now, track, Some(&arriving(now, 3.8)), &GOAL, &mut clk, &mut out);
+    assert!(!d.publish, "{:?}", d.status);
+    assert_eq!(d.status.fallback, Fallback::Keep as u32, "{:?}", d.status);
+    assert!(d.status.min_predicted_clearance_m < 0.0, "the conflict is reported: {:?}", d.status);
+    assert_eq!(rp.current().traj_id, first.traj_id);
+    // 1 s later the same object is ~2.4 s away: inside the reaction time → brake.
+    let now = 2_000_000_000u64;
+    let q_now = first.sample(first.time_of(now)).p;
+    let d = rp.step(now, &q_now, track, Some(&arriving(now, 2.8)), &GOAL, &mut clk, &mut out);
+    assert!(d.publish, "{:?}", d.status);
+    assert_eq!(d.status.fallback, Fallback::Brake as u32, "{:?}", d.status);
+}
