@@ -10,9 +10,9 @@
 
 use dkrrt_config::arm::contract_limits;
 use dkrrt_config::Scenario;
-use dkrrt_msg::{ContractLimits, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
-use dkrrt_otg::{KinState, Limits};
-use dkrrt_planner::goto::plan;
+use dkrrt_msg::{ContractLimits, ControllerMode, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
+use dkrrt_otg::Limits;
+use dkrrt_planner::goto::Goto;
 use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
 use dkrrt_planner::replan::replanner;
 use dkrrt_predictor::{GateStats, Models};
@@ -70,7 +70,7 @@ pub struct PredictorLoop {
 /// The trajectory source.
 pub enum TrajSource {
     /// One jerk-limited line to the goal.
-    Straight { traj: Box<Trajectory>, duration: f64 },
+    Straight { core: Box<Goto>, traj: Box<Trajectory>, duration: f64 },
     /// The DK-RRT replanning loop.
     Planner { core: Box<Replanner>, out: Box<Trajectory> },
 }
@@ -131,17 +131,14 @@ impl Lockstep {
         } else {
             let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
             let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
-            let d = plan(
-                &KinState::rest(sc.sim.initial_q),
-                &sc.goal.q,
-                &limits,
-                sc.period_ns() as f64 * 1e-9,
-                1,
-                0,
-                &mut traj,
-            )
-            .map_err(|e| e.to_string())?;
-            TrajSource::Straight { traj, duration: d }
+            // The same core as `dkrrt goto`: planned from the initial state, published at the
+            // first tick; re-issued when the tracker holds short of the goal.
+            let mut core = Box::new(Goto::new(limits, sc.period_ns() as f64 * 1e-9, sc.goal.q));
+            let d = core
+                .step(0, &sc.sim.initial_q, false, &mut traj)
+                .expect("a new source plans at its first step")
+                .map_err(|e| e.to_string())?;
+            TrajSource::Straight { core, traj, duration: d }
         };
         Ok(Lockstep {
             sim,
@@ -164,6 +161,16 @@ impl Lockstep {
     pub fn tick(&mut self, deliver_state: bool) {
         let m = self.sim.plant.measured();
         let stamp = m.tick * self.period_ns;
+        if let TrajSource::Straight { core, traj, .. } = &mut self.source {
+            if deliver_state && self.started {
+                let holding = self.tracker.mode() == ControllerMode::Hold;
+                if let Some(Ok(_)) = core.step(stamp, &m.q, holding, traj) {
+                    if let Some(e) = self.tracker.set_trajectory(traj) {
+                        push(&mut self.events, e);
+                    }
+                }
+            }
+        }
         if let TrajSource::Planner { core, out } = &mut self.source {
             if deliver_state && core.cycle_due(stamp) {
                 let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };

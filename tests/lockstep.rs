@@ -38,3 +38,31 @@ fn lockstep_with_noise_and_delay_still_tracks() {
     assert!(r.tracking_error_rad_rms < 1e-3, "{}", r.tracking_error_rad_rms);
     assert!(r.final_error_rad < 1e-3, "{}", r.final_error_rad);
 }
+
+#[test]
+fn the_straight_source_reissues_its_goal_after_a_safe_hold() {
+    use dkrrt::lockstep::{Lockstep, TrajSource};
+    let mut sc = Scenario::default_scenario();
+    sc.episode = None;
+    sc.debris.scene.clear();
+    sc.planner.method = "straight".into();
+    let mut ls = Lockstep::new(&sc).unwrap();
+    // 1 s of motion, then 20 lost states mid-motion (the tracker's stale limit is 3): safe hold.
+    for _ in 0..1000 {
+        ls.tick(true);
+    }
+    for _ in 0..20 {
+        ls.tick(false);
+    }
+    let m = ls.tracker.mode();
+    assert!(matches!(m, dkrrt_msg::ControllerMode::Brake | dkrrt_msg::ControllerMode::Hold), "{m:?}");
+    // States flow again: the goal is re-issued from where the arm rests, and reached.
+    for _ in 0..15_000 {
+        ls.tick(true);
+    }
+    let TrajSource::Straight { core, .. } = &ls.source else { panic!("straight source") };
+    assert_eq!(core.reissues, 1, "one re-issue, none once at the goal");
+    let r = ls.report(&sc);
+    assert!(r.safe_hold_entries >= 1);
+    assert!(ls.goal_reached_s.is_some(), "{:?}", r.final_q);
+}

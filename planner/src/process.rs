@@ -11,14 +11,12 @@ use std::path::Path;
 use dkrrt_config::Scenario;
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
-use dkrrt_otg::{KinState, Limits};
+use dkrrt_otg::Limits;
 use dkrrt_rt::clock::mono_ns;
 use dkrrt_rt::signals;
 
-use crate::goto::plan;
-
-/// The goal counts as reached within this joint distance, rad.
-pub const GOAL_TOLERANCE_RAD: f64 = 1e-3;
+use crate::goto::Goto;
+pub use crate::goto::GOAL_TOLERANCE_RAD;
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct GotoReport {
@@ -46,9 +44,7 @@ pub fn run(
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
     let mut cmd = <TorqueCommand as Zeroed>::zeroed();
-    let mut current_goal = goal;
     let mut last_seq = 0u64;
-    let mut last_replan_ns = 0u64;
     let mut traj_pub = bus.publisher::<Trajectory>(Source::TrajectorySource).map_err(|e| e.to_string())?;
     let mut hb =
         HeartbeatTx::new(&bus, Source::TrajectorySource, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
@@ -58,7 +54,7 @@ pub fn run(
     let mut state = <RobotState as Zeroed>::zeroed();
     let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut have_state = false;
-    let mut next_goal = Some(goal);
+    let mut core = Goto::new(limits, period_s, goal);
     let mut rep = GotoReport {
         trajectories: 0,
         last_duration_s: 0.0,
@@ -68,15 +64,13 @@ pub fn run(
         states_rejected: 0,
         plan_errors: Vec::new(),
     };
-    let mut traj_id = 0u64;
-    let mut restart_from_state = false;
     while !signals::stop_requested() {
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
         goal_sub
             .for_each(&lim, |m| {
-                next_goal = Some(m.q);
+                core.set_goal(m.q);
             })
             .map_err(|e| e.to_string())?;
         rep.goals_received = goal_sub.received;
@@ -85,44 +79,30 @@ pub fn run(
         let fresh = have_state && state.header.seq > last_seq;
         last_seq = state.header.seq;
         let have_cmd = cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        if fresh && have_cmd && traj_id > 0 && next_goal.is_none() {
-            let off = (0..NJ).map(|i| (state.q[i] - current_goal[i]).abs()).fold(0.0, f64::max);
-            let holding = cmd.mode == ControllerMode::Hold as u32 && cmd.state_seq + 5 >= state.header.seq;
-            let now = state.header.stamp_ns;
-            if holding && off > GOAL_TOLERANCE_RAD && now > last_replan_ns + 500_000_000 {
-                eprintln!("goto: tracker holds {off:.3} rad short of the goal; re-issuing it");
-                last_replan_ns = now;
-                rep.replans_after_hold += 1;
-                next_goal = Some(current_goal);
-                restart_from_state = true;
-            }
-        }
         if have_state {
-            if let Some(q_goal) = next_goal.take() {
-                current_goal = q_goal;
-                let now = state.header.stamp_ns;
-                // Start from the reference we published (continuity), or from
-                // the measured state (at rest, the first time).
-                let from = if traj_id == 0 || std::mem::take(&mut restart_from_state) {
-                    KinState { p: state.q, v: [0.0; NJ], a: [0.0; NJ] }
-                } else {
-                    let s = traj.sample(traj.time_of(now));
-                    KinState { p: s.p, v: s.v, a: s.a }
-                };
-                traj_id += 1;
-                match plan(&from, &q_goal, &limits, period_s, traj_id, now, &mut traj) {
-                    Ok(d) => {
-                        traj_pub.publish(&mut traj).map_err(|e| e.to_string())?;
-                        rep.trajectories += 1;
-                        rep.last_duration_s = d;
-                        eprintln!("goto: trajectory {traj_id} to {q_goal:?}: {d:.3} s");
+            // The tracker holds: its newest command is a hold for a recent state.
+            let holding = fresh
+                && have_cmd
+                && cmd.mode == ControllerMode::Hold as u32
+                && cmd.state_seq + 5 >= state.header.seq;
+            let reissues = core.reissues;
+            match core.step(state.header.stamp_ns, &state.q, holding, &mut traj) {
+                Some(Ok(d)) => {
+                    if core.reissues > reissues {
+                        eprintln!("goto: tracker held short of the goal; re-issued it");
                     }
-                    Err(e) => {
-                        eprintln!("goto: cannot plan to {q_goal:?}: {e}");
-                        rep.plan_errors.push(e.to_string());
-                    }
+                    traj_pub.publish(&mut traj).map_err(|e| e.to_string())?;
+                    rep.trajectories += 1;
+                    rep.last_duration_s = d;
+                    eprintln!("goto: trajectory {} to {:?}: {d:.3} s", core.traj_id, core.goal());
                 }
+                Some(Err(e)) => {
+                    eprintln!("goto: cannot plan to {:?}: {e}", core.goal());
+                    rep.plan_errors.push(e.to_string());
+                }
+                None => {}
             }
+            rep.replans_after_hold = core.reissues;
             if state.header.flags & FLAG_END_OF_RUN != 0 {
                 break;
             }

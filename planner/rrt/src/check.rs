@@ -118,6 +118,16 @@ impl Checker {
         clearance(&self.caps, &self.obs, stop_below, self.cap)
     }
 
+    /// The obstacle nearest to configuration `q` at time `t` and its clearance (diagnostics).
+    pub fn nearest_at(&mut self, world: &WorldInTime, q: &[f64; NJ], t: f64) -> Option<(u32, f64)> {
+        self.poser.pose(q, &mut self.caps);
+        world.obstacles_at(t, 0.0, &mut self.obs);
+        self.obs
+            .iter()
+            .map(|o| (o.id, clearance(&self.caps, std::slice::from_ref(o), f64::NEG_INFINITY, self.cap)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// Checks the motion `at(t)` over `[t0, t1]` (times past `t_end` are not checked: beyond
     /// the look-ahead nothing is known). `moving = false` for a rest (`at` constant).
     pub fn check(

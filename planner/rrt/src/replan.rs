@@ -310,6 +310,18 @@ impl Replanner {
                 let c = self.planner.checker.clearance_at(&self.world, q_meas, t, 0.0, f64::NEG_INFINITY);
                 eprintln!("  rest clearance at +{dt}: {c:.3}");
             }
+            if self.current.traj_id != 0 {
+                let near: Vec<String> = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0]
+                    .iter()
+                    .map(|dt| {
+                        let t = t_now + dt;
+                        let q = self.current.sample(self.current.time_of((t * 1e9) as u64)).p;
+                        let n = self.planner.checker.nearest_at(&self.world, &q, t);
+                        n.map_or(String::new(), |(id, c)| format!("+{dt}: #{id} {c:.2}"))
+                    })
+                    .collect();
+                eprintln!("  plan nearest: {near:?}");
+            }
             if let Some(g) = self.goal {
                 let gc: Vec<String> = [0.0, 1.0, 2.0, 3.0, 4.0, 6.0]
                     .iter()
