@@ -7,10 +7,12 @@
 //!
 //! This replaces a bound fitted once on training data (a quantile over every kind of object)
 //! by one measured on the object itself: a slowly turning panel gets a tight bound, a fast
-//! tumbler a wide one. Steps that have not been scored yet (a young track) have no bound: the
-//! caller keeps the fitted one. Storage is allocated once ([`ForecastScore::new`]).
+//! tumbler a wide one. Steps that have not been scored yet (a young track, or one whose
+//! motion just changed: the predictor clears the scores at a detected event or manoeuvre, as
+//! its fitted bound grows) have no bound: the caller keeps the fitted one. Storage is allocated once ([`ForecastScore::new`]).
 
-/// Forecasts kept per track (at 10 Hz: 4.8 s, more than the horizon).
+/// Forecasts kept per track (one per model step of start time: 4.8 s at 0.1 s, more than the
+/// horizon).
 pub const SLOTS: usize = 48;
 
 /// Per-track store of published forecasts and their per-step error scores.
@@ -59,22 +61,25 @@ impl ForecastScore {
         self.last_decay = f64::NAN;
     }
 
-    /// Keeps a published forecast from `t0`: `states` is `h` rows of 13-states
+    /// Keeps a published forecast from `t0` (unless one was kept less than a model step
+    /// earlier): `states` is `h` rows of 13-states
     /// ([`dkrrt_koopman::debris_state`] layout) at `t0 + k·dt`, `k = 1..=h`.
     pub fn record(&mut self, t0: f64, states: &[f64]) {
         use dkrrt_koopman::debris_state::N;
-        // One forecast per start time (a repeated call without a new observation).
+        // At most one forecast per model step of start time, so the kept ones span
+        // SLOTS · dt (more than the horizon) however often the caller forecasts.
         let last = (self.head + SLOTS - 1) % SLOTS;
-        let slot = if self.t0[last] == t0 { last } else { self.head };
+        if self.t0[last].is_finite() && t0 < self.t0[last] + self.dt - 1e-9 {
+            return;
+        }
+        let slot = self.head;
         for k in 0..self.h.min(states.len() / N) {
             let x = &states[k * N..(k + 1) * N];
             self.poses[slot * self.h + k] = [x[0], x[1], x[2], x[6], x[7], x[8], x[9]];
         }
         self.t0[slot] = t0;
         self.next_k[slot] = 1;
-        if slot == self.head {
-            self.head = (self.head + 1) % SLOTS;
-        }
+        self.head = (self.head + 1) % SLOTS;
     }
 
     /// Scores every kept forecast step that has come due by `t`: `truth(τ)` is the track's
@@ -153,5 +158,11 @@ mod tests {
         }
         s.clear();
         assert!(s.radius(1, [0.0; 2], 1.0).is_none());
+        // Forecasts every 20 ms: one kept per 0.1 s, so the longest step still gets scored.
+        for i in 0..200 {
+            s.record(0.02 * i as f64, &states);
+        }
+        s.score(4.0 + 1.0, truth);
+        assert!(s.radius(h, [0.0; 2], 1.0).is_some());
     }
 }

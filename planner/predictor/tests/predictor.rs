@@ -267,3 +267,38 @@ fn tracks_time_out_and_slots_are_reused() {
     assert_eq!(pr.prune(10.0), MAX_TRACKS);
     assert_eq!(pr.n_tracks(), 0);
 }
+
+#[test]
+fn published_bounds_are_calibrated_online_and_monotone() {
+    // An object on a straight line spinning steadily: the constant-velocity model is exact, so
+    // once the track has scored its own forecasts the bound of the first steps shrinks to the
+    // floors (far below the fitted 0.05 m / 0.05 rad); beyond the calibrated steps the fitted
+    // bound holds, never below the last calibrated one.
+    let mut pr = cv_predictor();
+    let cfg = *pr.config();
+    let mut buf = ForecastBuffer::for_predictor(&pr);
+    let dt = 0.02;
+    let mut young = None;
+    for k in 0..400 {
+        let t = k as f64 * dt;
+        let (p, q) = pose(t);
+        pr.observe(&obs(3, t, p, q));
+        // Forecast at 50 Hz, as the predictor process does.
+        if pr.forecast(&mut buf) == 0 {
+            continue;
+        }
+        young.get_or_insert(buf.pos_radius(0, 1));
+    }
+    let (floor, factor) = (cfg.calib_floor, cfg.calib_factor);
+    let young = young.unwrap();
+    assert!((young - 0.05).abs() < 1e-9, "young track: the fitted bound ({young})");
+    let p1 = buf.pos_radius(0, 1);
+    assert!(p1 < 0.02 && p1 >= floor[0], "calibrated: {p1}");
+    assert!(buf.att_radius(0, 1) < 0.03 && buf.att_radius(0, 1) >= floor[1]);
+    for k in 2..=buf.horizon() {
+        assert!(buf.pos_radius(0, k) >= buf.pos_radius(0, k - 1) - 1e-12, "monotone at {k}");
+        assert!(buf.att_radius(0, k) >= buf.att_radius(0, k - 1) - 1e-12, "monotone at {k}");
+    }
+    assert!((buf.pos_radius(0, cfg.calib_steps + 1) - 0.05).abs() < 1e-9, "fitted beyond");
+    assert!(factor > 1.0);
+}
