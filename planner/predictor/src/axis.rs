@@ -172,6 +172,19 @@ impl AxisPrecession {
         rotate(&omega.map(|w| w * dt), &self.z)
     }
 
+    /// The axis at `t0 + k·step`, `k = 1..=out.len()`, with `t0` = the newest sample + `offset`
+    /// (one rotation matrix applied step by step).
+    pub fn axes_into(&self, omega: &[f64; 3], offset: f64, step: f64, out: &mut [[f64; 3]]) {
+        let r = omega.map(|w| w * step);
+        // Columns of the rotation by r: the images of the unit vectors.
+        let cols = [rotate(&r, &[1.0, 0.0, 0.0]), rotate(&r, &[0.0, 1.0, 0.0]), rotate(&r, &[0.0, 0.0, 1.0])];
+        let mut z = self.axis_at(omega, offset);
+        for o in out.iter_mut() {
+            z = [0, 1, 2].map(|i| cols[0][i] * z[0] + cols[1][i] * z[1] + cols[2][i] * z[2]);
+            *o = z;
+        }
+    }
+
     /// Rotates the attitude `q` (body → frame) so that its body z axis lies along `axis` by the
     /// smallest rotation (the spin about the axis is kept as `q` has it).
     pub fn align(q: &[f64], axis: &[f64; 3]) -> [f64; 4] {
@@ -318,6 +331,23 @@ impl AxisChannel {
         Some(floor + factor * m)
     }
 
+    /// [`AxisChannel::radius`] for `k = 1, 2, …` into `out[k − 1]` while step `k` is scored;
+    /// returns how many were written (the rest: no calibrated bound). O(len).
+    pub fn radii(&self, floor: f64, factor: f64, out: &mut [f64]) -> usize {
+        if self.prec.n < Self::MATURE {
+            return 0;
+        }
+        let mut m: f64 = 0.0;
+        for (k, o) in out.iter_mut().enumerate().take(MAX_STEPS) {
+            if !self.scored[k] {
+                return k;
+            }
+            m = m.max(self.score[k]);
+            *o = floor + factor * m;
+        }
+        out.len().min(MAX_STEPS)
+    }
+
     /// Forget the precession estimate and the forecasts made with it (after an attitude
     /// event), keep the scores.
     pub fn restart(&mut self) {
@@ -398,6 +428,19 @@ mod tests {
             ch2.update(t, &[q.w, q.i, q.j, q.k], &[0.0; 3], dt, h);
         }
         assert!(ch2.radius(40, 0.02, 1.5).unwrap() >= ch2.radius(1, 0.02, 1.5).unwrap());
+        // The batch forms agree with the one-step ones.
+        let mut r = [0.0; 40];
+        assert_eq!(ch2.radii(0.02, 1.5, &mut r), 40);
+        for k in 1..=40 {
+            assert!((r[k - 1] - ch2.radius(k, 0.02, 1.5).unwrap()).abs() < 1e-12);
+        }
+        let o = ch2.prec.omega();
+        let mut zs = [[0.0; 3]; 40];
+        ch2.prec.axes_into(&o, 0.01, 0.1, &mut zs);
+        for k in 1..=40 {
+            let z = ch2.prec.axis_at(&o, 0.01 + 0.1 * k as f64);
+            assert!((0..3).all(|i| (z[i] - zs[k - 1][i]).abs() < 1e-9), "{k}");
+        }
         assert!(ch2.radius(40, 0.02, 1.5).unwrap() > 2.0 * ch.radius(40, 0.02, 1.5).unwrap());
     }
 }

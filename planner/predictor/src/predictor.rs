@@ -692,12 +692,11 @@ impl DebrisPredictor {
                 tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
             }
             let om = tr.axis.prec.omega();
-            for s in 1..=h {
-                let o = k * hb + s - 1;
-                buf.axis[o] = tr.axis.prec.axis_at(&om, s as f64 * buf.dt + tr.filter.t - tr.axis.prec.t);
-                let att = buf.att_radius[o];
-                buf.axis_radius[o] = tr.axis.radius(s, floor[1], factor).unwrap_or(att);
-            }
+            let rows = k * hb..k * hb + h;
+            tr.axis.prec.axes_into(&om, tr.filter.t - tr.axis.prec.t, buf.dt, &mut buf.axis[rows.clone()]);
+            let n_cal = tr.axis.radii(floor[1], factor, &mut buf.axis_radius[rows.clone()]);
+            let (ar, at) = (&mut buf.axis_radius[rows.clone()], &buf.att_radius[rows]);
+            ar[n_cal..].copy_from_slice(&at[n_cal..]);
             buf.ids[k] = tr.id;
             buf.t0[k] = tr.filter.t;
         }
