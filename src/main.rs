@@ -88,6 +88,23 @@ enum Cmd {
         #[arg(long, value_delimiter = ',', num_args = 6, allow_negative_numbers = true)]
         goal: Option<Vec<f64>>,
     },
+    /// Send a goal to the trajectory source of a live run: joint positions or an end-effector pose.
+    Goal {
+        #[command(flatten)]
+        common: Common,
+        /// Run id of the live run.
+        #[arg(long, default_value = "default")]
+        run: String,
+        /// Joint goal in rad, comma separated.
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true, conflicts_with = "pose")]
+        q: Option<Vec<f64>>,
+        /// End-effector pose in the base frame: x,y,z (m), qw,qx,qy,qz (unit quaternion).
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        pose: Option<Vec<f64>>,
+        /// Wait this long for a goto or planner to subscribe, s.
+        #[arg(long, default_value_t = 5.0)]
+        wait: f64,
+    },
     /// The debris predictor process: tracks debris observations, publishes Koopman forecasts (>= 50 Hz).
     Predictor(ProcArgs),
     /// Record the debris observations of a run (a sensor's or the sim's) to a file for `train --observations`.
@@ -265,6 +282,21 @@ fn main() -> ExitCode {
                 None => None,
             };
             dkrrt::train::train(&out, quick, epochs, json.as_deref(), recorded).map(|_| true)
+        }
+        Cmd::Goal { common, run, q, pose, wait } => {
+            use dkrrt_planner::goal_cli::{goal_message, send, GoalRequest};
+            let sc = scenario(&common)?;
+            let req = match (q, pose) {
+                (Some(q), None) if q.len() == 6 => GoalRequest::Joint(std::array::from_fn(|i| q[i])),
+                (None, Some(p)) if p.len() == 7 => {
+                    GoalRequest::Pose([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
+                }
+                _ => return Err("goal: give --q (6 joint positions) or --pose (x,y,z,qw,qx,qy,qz)".into()),
+            };
+            let g = goal_message(&sc, req, 1).map_err(|e| format!("goal: {e}"))?;
+            let n = send(&run, g, wait).map_err(|e| format!("goal: {e}"))?;
+            eprintln!("goal: sent to {n} subscriber(s) of run {run:?}");
+            Ok(true)
         }
         Cmd::Record { common, run, out, seconds } => {
             let sc = scenario(&common)?;

@@ -2,6 +2,7 @@
 //! jerk-limited, synchronized trajectory (dkrrt-otg) in the fixed-size
 //! [`Trajectory`] message the tracker samples.
 
+use dkrrt_model::ArmModel;
 use dkrrt_msg::{JerkSegment, Trajectory, Zeroed, MAX_SEGMENTS, NJ};
 use dkrrt_otg::{KinState, Limits, Options, OtgError};
 
@@ -117,6 +118,20 @@ impl Goto {
         self.pending = true;
     }
 
+    /// A new end-effector pose goal (`p` m, `q` (w, x, y, z), base frame): the IK solution
+    /// nearest the arm's configuration `q_now` ([`dkrrt_rrt::goal`]; goto knows no debris).
+    /// Returns false (the goal in force is kept) if no solution reaches the pose.
+    pub fn set_pose_goal(&mut self, model: &ArmModel, p: &[f64; 3], q: &[f64; 4], q_now: &[f64; NJ]) -> bool {
+        let sols = dkrrt_rrt::goal::ik_solutions(model, p, q, &[*q_now, self.goal]);
+        match dkrrt_rrt::goal::choose(&sols, q_now, |_| 1.0) {
+            Some(g) => {
+                self.set_goal(g);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// One step at plant time `now_ns` with the measured joint positions; `holding`: the
     /// tracker holds (its newest command, for a recent state, is a hold). `out` is the caller's
     /// trajectory buffer and must keep the last trajectory written between calls. Returns the
@@ -158,6 +173,25 @@ impl Goto {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pose_goal_is_solved_nearest_the_arm_or_refused() {
+        let model = ArmModel::default_arm();
+        let start = [0.0, -0.5, 1.0, 0.0, 0.5, 0.0];
+        let want = [0.35, -0.2, 0.7, 0.3, 0.2, 0.4];
+        let t = model.fk(&dkrrt_model::JVec::from_row_slice(&want));
+        let (p, r) = ([t.translation.x, t.translation.y, t.translation.z], t.rotation);
+        let q = [r.w, r.i, r.j, r.k];
+        let mut g = Goto::new(limits(), 0.001, start);
+        assert!(g.set_pose_goal(&model, &p, &q, &start));
+        let f = model.fk(&dkrrt_model::JVec::from_row_slice(g.goal()));
+        assert!((f.translation.vector - t.translation.vector).norm() < 1e-4);
+        let mut out = <Trajectory as Zeroed>::zeroed();
+        assert!(g.step(0, &start, false, &mut out).unwrap().is_ok());
+        let before = *g.goal();
+        assert!(!g.set_pose_goal(&model, &[10.0, 0.0, 0.0], &q, &start), "out of reach");
+        assert_eq!(*g.goal(), before, "the goal in force is kept");
+    }
 
     #[test]
     fn goto_plans_once_replans_on_a_new_goal_and_reissues_after_a_hold() {

@@ -8,6 +8,7 @@
 //! * [`replan`]: the scenario's DK-RRT replanning core (`dkrrt_rrt`), for both shells.
 //! * [`planner_process`]: the `dkrrt planner` process shell.
 
+pub mod goal_cli;
 pub mod goto;
 pub mod planner_process;
 pub mod predict;

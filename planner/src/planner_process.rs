@@ -31,6 +31,8 @@ pub struct PlannerReport {
     pub summary: Summary,
     pub forecasts_received: u64,
     pub rejected: u64,
+    /// End-effector pose goals no IK solution reached (the goal in force was kept).
+    pub pose_goals_unreachable: u64,
     pub stopped_by_signal: bool,
 }
 
@@ -44,6 +46,7 @@ pub fn run(
     signals::install();
     let (model, lim, mut goal) = crate::source_setup(sc, goal, "planner")?;
     let mut core = replanner(sc, model);
+    let mut pose_goals_unreachable = 0u64;
     let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
@@ -75,7 +78,30 @@ pub fn run(
             have_state = true;
         }
         cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        goal_sub.for_each(&lim, |m| goal = m.q).map_err(|e| e.to_string())?;
+        let mut pose_goal = None;
+        goal_sub
+            .for_each(&lim, |m| match GoalKind::from_u32(m.kind) {
+                Some(GoalKind::Pose) => pose_goal = Some((m.pose_p, m.pose_q)),
+                _ => {
+                    goal = m.q;
+                    pose_goal = None;
+                }
+            })
+            .map_err(|e| e.to_string())?;
+        if let Some((p, q)) = pose_goal {
+            // Solved against the newest forecast, from where the arm is.
+            let t_now = state.header.stamp_ns as f64 * 1e-9;
+            match core.resolve_pose_goal(&p, &q, &state.q, t_now) {
+                Some(g) => {
+                    eprintln!("planner: pose goal {p:?} {q:?} -> joint goal {g:?}");
+                    goal = g;
+                }
+                None => {
+                    pose_goals_unreachable += 1;
+                    eprintln!("planner: pose goal {p:?} {q:?} is out of reach; keeping the goal in force");
+                }
+            }
+        }
         let end = have_state && state.header.flags & FLAG_END_OF_RUN != 0;
         // Realtime: every wake is a cycle; lockstep: the core's plant-clock cadence.
         let due = have_state && !end && (!lockstep || core.cycle_due(state.header.stamp_ns));
@@ -136,6 +162,7 @@ pub fn run(
         summary: core.summary(&sc.planner.method),
         forecasts_received: forecasts,
         rejected: state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
+        pose_goals_unreachable,
         stopped_by_signal,
     };
     dkrrt_rt::write_stats("planner", stats_path, &rep)?;

@@ -26,6 +26,8 @@ pub struct GotoReport {
     /// Goals re-issued after the tracker stopped short of them (safe hold).
     pub replans_after_hold: u64,
     pub goals_rejected: u64,
+    /// End-effector pose goals no IK solution reached.
+    pub pose_goals_unreachable: u64,
     pub states_rejected: u64,
     pub plan_errors: Vec<String>,
 }
@@ -38,7 +40,7 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<GotoReport, String> {
     signals::install();
-    let (_, lim, goal) = crate::source_setup(sc, goal, "goto")?;
+    let (model, lim, goal) = crate::source_setup(sc, goal, "goto")?;
     let bus = Bus::new(run, "goto").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
@@ -61,6 +63,7 @@ pub fn run(
         goals_received: 0,
         replans_after_hold: 0,
         goals_rejected: 0,
+        pose_goals_unreachable: 0,
         states_rejected: 0,
         plan_errors: Vec::new(),
     };
@@ -68,11 +71,22 @@ pub fn run(
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
+        let mut pose_goal = None;
         goal_sub
-            .for_each(&lim, |m| {
-                core.set_goal(m.q);
+            .for_each(&lim, |m| match GoalKind::from_u32(m.kind) {
+                Some(GoalKind::Pose) => pose_goal = Some((m.pose_p, m.pose_q)),
+                _ => {
+                    core.set_goal(m.q);
+                    pose_goal = None;
+                }
             })
             .map_err(|e| e.to_string())?;
+        if let Some((p, q)) = pose_goal {
+            if !core.set_pose_goal(&model, &p, &q, &state.q) {
+                rep.pose_goals_unreachable += 1;
+                eprintln!("goto: pose goal {p:?} {q:?} is out of reach; keeping the goal in force");
+            }
+        }
         rep.goals_received = goal_sub.received;
         rep.goals_rejected = goal_sub.rejected;
         rep.states_rejected = state_sub.rejected;

@@ -136,6 +136,8 @@ pub struct Replanner {
     pub cfg: ReplanConfig,
     pub planner: Planner,
     pub world: WorldInTime,
+    /// The arm (for pose goals).
+    model: ArmModel,
     current: Box<Trajectory>,
     current_reach: Option<Reach>,
     goal: Option<[f64; NJ]>,
@@ -165,7 +167,8 @@ impl Replanner {
         has_debris: bool,
     ) -> Self {
         Replanner {
-            planner: Planner::new(model, limits, pcfg),
+            planner: Planner::new(model.clone(), limits, pcfg),
+            model,
             world: WorldInTime::new(cfg.margin_m),
             current: Box::new(<Trajectory as Zeroed>::zeroed()),
             current_reach: None,
@@ -508,6 +511,37 @@ impl Replanner {
         self.current_reach = Some(reach);
         self.next_id += 1;
         self.stats.replans += 1;
+    }
+}
+
+impl Replanner {
+    /// A joint goal for the end-effector pose `p`, `q` ([`crate::goal`]): IK from the arm's
+    /// configuration `q_now`, the goal in force and seeded restarts; the solution nearest to
+    /// `q_now` among those clear of the current forecast at rest from `t_now` over the
+    /// look-ahead (checked every 0.25 s), else the clearest. `None`: unreachable.
+    pub fn resolve_pose_goal(
+        &mut self,
+        p: &[f64; 3],
+        q: &[f64; 4],
+        q_now: &[f64; NJ],
+        t_now: f64,
+    ) -> Option<[f64; NJ]> {
+        let mut seeds = vec![*q_now];
+        if let Some(g) = self.goal {
+            seeds.push(g);
+        }
+        let sols = crate::goal::ik_solutions(&self.model, p, q, &seeds);
+        let look = self.planner.cfg.lookahead_s;
+        let (checker, world) = (&mut self.planner.checker, &self.world);
+        crate::goal::choose(&sols, q_now, |c| {
+            let mut m = f64::INFINITY;
+            let mut t = t_now;
+            while t <= t_now + look + 1e-9 {
+                m = m.min(checker.clearance_at(world, c, t, 0.0, f64::NEG_INFINITY));
+                t += 0.25;
+            }
+            m
+        })
     }
 }
 

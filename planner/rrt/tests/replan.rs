@@ -206,3 +206,41 @@ fn a_far_conflict_keeps_the_moving_plan_a_near_one_brakes() {
     assert!(d.publish, "{:?}", d.status);
     assert_eq!(d.status.fallback, Fallback::Brake as u32, "{:?}", d.status);
 }
+
+#[test]
+fn a_pose_goal_becomes_the_clear_ik_solution_nearest_the_arm() {
+    use dkrrt_model::JVec;
+    let model = ArmModel::default_arm();
+    let t = model.fk(&JVec::from_row_slice(&GOAL));
+    let p = [t.translation.x, t.translation.y, t.translation.z];
+    let r = t.rotation;
+    let q = [r.w, r.i, r.j, r.k];
+    let sols = dkrrt_rrt::goal::ik_solutions(&model, &p, &q, &[START]);
+    assert!(!sols.is_empty());
+    for s in &sols {
+        let f = model.fk(&JVec::from_row_slice(s));
+        assert!((f.translation.vector - t.translation.vector).norm() < 1e-4, "{s:?}");
+        assert!(f.rotation.angle_to(&t.rotation) < 1e-4);
+        assert!(model.limits().contains(&JVec::from_row_slice(s)));
+    }
+    // Nearest to the arm when all are clear; another (or the clearest) when that one is not.
+    let dist = |a: &[f64; NJ]| (0..NJ).map(|j| (a[j] - START[j]).abs()).fold(0.0, f64::max);
+    let near = dkrrt_rrt::goal::choose(&sols, &START, |_| 1.0).unwrap();
+    assert!(sols.iter().all(|s| dist(s) >= dist(&near)));
+    let other = dkrrt_rrt::goal::choose(&sols, &START, |c| if *c == near { -0.5 } else { 0.2 }).unwrap();
+    assert!(sols.len() == 1 || other != near);
+    // Out of reach: no solution.
+    assert!(dkrrt_rrt::goal::ik_solutions(&model, &[10.0, 0.0, 0.0], &q, &[START]).is_empty());
+    // Through the replanning core, against a forecast: the chosen goal reaches the pose and
+    // is clear of the debris.
+    let mut rp = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    rp.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out);
+    let g = rp.resolve_pose_goal(&p, &q, &START, 0.0).unwrap();
+    let f = model.fk(&JVec::from_row_slice(&g));
+    assert!((f.translation.vector - t.translation.vector).norm() < 1e-4);
+    assert!(rp.resolve_pose_goal(&[10.0, 0.0, 0.0], &q, &START, 0.0).is_none());
+}

@@ -50,6 +50,8 @@ pub enum Source {
     Launcher = 6,
     /// A real arm driver taking the simulator's place.
     Driver = 7,
+    /// A user tool (`dkrrt goal`).
+    User = 8,
 }
 
 impl Source {
@@ -62,6 +64,7 @@ impl Source {
             5 => Source::Predictor,
             6 => Source::Launcher,
             7 => Source::Driver,
+            8 => Source::User,
             _ => return None,
         })
     }
@@ -74,6 +77,7 @@ impl Source {
             Source::Predictor => "predictor",
             Source::Launcher => "launcher",
             Source::Driver => "driver",
+            Source::User => "user",
         }
     }
 }
@@ -171,15 +175,43 @@ pub struct Trajectory {
     pub seg: [[JerkSegment; MAX_SEGMENTS]; NJ],
 }
 
-/// Joint-space goal for the trajectory source / planner.
+/// Goal for the trajectory source / planner: joint positions, or an end-effector pose
+/// ([`GoalKind`]).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("dkrrt::Goal/1")]
+#[type_name("dkrrt::Goal/2")]
 pub struct Goal {
     pub header: Header,
     pub goal_id: u64,
-    /// Target joint positions, rad.
+    /// [`GoalKind`].
+    pub kind: u32,
+    pub _pad: u32,
+    /// Target joint positions, rad (`GoalKind::Joint`).
     pub q: [f64; NJ],
+    /// Target end-effector position in the base frame, m (`GoalKind::Pose`).
+    pub pose_p: [f64; 3],
+    /// Target end-effector attitude in the base frame, (w, x, y, z), unit (`GoalKind::Pose`).
+    pub pose_q: [f64; 4],
+}
+
+/// What a [`Goal`] asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u32)]
+pub enum GoalKind {
+    /// The joint positions `q`.
+    Joint = 0,
+    /// The end-effector pose `pose_p`, `pose_q` (the source solves IK).
+    Pose = 1,
+}
+
+impl GoalKind {
+    pub fn from_u32(v: u32) -> Option<Self> {
+        match v {
+            0 => Some(GoalKind::Joint),
+            1 => Some(GoalKind::Pose),
+            _ => None,
+        }
+    }
 }
 
 /// Life-cycle state reported in a [`Heartbeat`].
@@ -467,7 +499,7 @@ const _: () = {
     assert!(size_of::<TorqueCommand>() == 32 + 8 * NJ + 16);
     assert!(size_of::<JerkSegment>() == 40);
     assert!(size_of::<Trajectory>() == 32 + 24 + 4 * NJ + 40 * MAX_SEGMENTS * NJ);
-    assert!(size_of::<Goal>() == 32 + 8 + 8 * NJ);
+    assert!(size_of::<Goal>() == 32 + 8 + 8 + 8 * NJ + 24 + 32);
     assert!(size_of::<Heartbeat>() == 32 + 8 + 32);
     assert!(size_of::<DebrisShape>() == 56);
     assert!(size_of::<DebrisObs>() == 128 + 56);

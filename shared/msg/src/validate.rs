@@ -138,7 +138,24 @@ impl Validate for TorqueCommand {
 
 impl Validate for Goal {
     fn validate(&self, lim: &ContractLimits) -> Result<(), ValidationError> {
-        range("q", &self.q, &lim.q_min, &lim.q_max)
+        match GoalKind::from_u32(self.kind) {
+            Some(GoalKind::Joint) => range("q", &self.q, &lim.q_min, &lim.q_max),
+            Some(GoalKind::Pose) => {
+                for (i, v) in self.pose_p.iter().enumerate() {
+                    if !v.is_finite() || v.abs() > 50.0 {
+                        return Err(ValidationError::OutOfRange {
+                            field: "pose_p",
+                            index: i,
+                            value: *v,
+                            min: -50.0,
+                            max: 50.0,
+                        });
+                    }
+                }
+                unit_quat("pose_q", 0, &self.pose_q)
+            }
+            None => Err(ValidationError::BadEnum { field: "kind", value: self.kind }),
+        }
     }
 }
 

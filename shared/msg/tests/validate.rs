@@ -69,6 +69,24 @@ fn goal_must_be_inside_the_joint_range() {
 }
 
 #[test]
+fn a_pose_goal_needs_a_finite_position_and_a_unit_attitude() {
+    let mut g = <Goal as Zeroed>::zeroed();
+    g.kind = GoalKind::Pose as u32;
+    g.q[4] = 3.01; // not used by a pose goal
+    g.pose_p = [0.4, 0.1, 0.6];
+    g.pose_q = [1.0, 0.0, 0.0, 0.0];
+    assert!(g.validate(&lim()).is_ok());
+    g.pose_q = [0.5, 0.0, 0.0, 0.0];
+    assert!(matches!(g.validate(&lim()), Err(ValidationError::NotUnit { field: "pose_q", .. })));
+    g.pose_q = [1.0, 0.0, 0.0, 0.0];
+    g.pose_p[2] = f64::NAN;
+    assert!(matches!(g.validate(&lim()), Err(ValidationError::OutOfRange { field: "pose_p", index: 2, .. })));
+    g.pose_p[2] = 0.6;
+    g.kind = 7;
+    assert!(matches!(g.validate(&lim()), Err(ValidationError::BadEnum { field: "kind", value: 7 })));
+}
+
+#[test]
 fn debris_messages_check_count_pose_and_speed() {
     let mut o = <DebrisObservation as Zeroed>::zeroed();
     o.count = 1;
