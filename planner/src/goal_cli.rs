@@ -6,8 +6,8 @@
 use std::time::{Duration, Instant};
 
 use dkrrt_config::Scenario;
-use dkrrt_msg::bus::Bus;
-use dkrrt_msg::{Goal, GoalKind, Source, Validate, Zeroed, NJ};
+use dkrrt_msg::bus::{Bus, Sub};
+use dkrrt_msg::{ContractLimits, Goal, GoalKind, Source, Validate, Zeroed, NJ};
 
 /// What to ask for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -15,6 +15,20 @@ pub enum GoalRequest {
     Joint([f64; NJ]),
     /// Position (m) and attitude (w, x, y, z) of the end effector in the base frame.
     Pose([f64; 3], [f64; 4]),
+}
+
+/// Reads every valid goal waiting on `sub` (invalid ones are counted by `sub`); the newest
+/// wins. What the trajectory sources (goto, planner) do with `dkrrt/goal` each cycle.
+pub fn take_goal(sub: &mut Sub<Goal>, lim: &ContractLimits) -> Result<Option<GoalRequest>, String> {
+    let mut last = None;
+    sub.for_each(lim, |m| {
+        last = Some(match GoalKind::from_u32(m.kind) {
+            Some(GoalKind::Pose) => GoalRequest::Pose(m.pose_p, m.pose_q),
+            _ => GoalRequest::Joint(m.q),
+        })
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(last)
 }
 
 /// The message for `req`, checked against the arm of `sc`.

@@ -20,6 +20,7 @@ use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
 use dkrrt_rrt::{Summary, TrackerView};
 
+use crate::goal_cli::{take_goal, GoalRequest};
 use crate::replan::replanner;
 use dkrrt_rt::clock::{mono_ns, Pacer};
 use dkrrt_rt::signals;
@@ -78,16 +79,14 @@ pub fn run(
             have_state = true;
         }
         cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        let mut pose_goal = None;
-        goal_sub
-            .for_each(&lim, |m| match GoalKind::from_u32(m.kind) {
-                Some(GoalKind::Pose) => pose_goal = Some((m.pose_p, m.pose_q)),
-                _ => {
-                    goal = m.q;
-                    pose_goal = None;
-                }
-            })
-            .map_err(|e| e.to_string())?;
+        let pose_goal = match take_goal(&mut goal_sub, &lim)? {
+            Some(GoalRequest::Joint(q)) => {
+                goal = q;
+                None
+            }
+            Some(GoalRequest::Pose(p, q)) => Some((p, q)),
+            None => None,
+        };
         if let Some((p, q)) = pose_goal {
             // Solved against the newest forecast, from where the arm is.
             let t_now = state.header.stamp_ns as f64 * 1e-9;

@@ -15,6 +15,7 @@ use dkrrt_otg::Limits;
 use dkrrt_rt::clock::mono_ns;
 use dkrrt_rt::signals;
 
+use crate::goal_cli::{take_goal, GoalRequest};
 use crate::goto::Goto;
 pub use crate::goto::GOAL_TOLERANCE_RAD;
 
@@ -71,16 +72,14 @@ pub fn run(
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
-        let mut pose_goal = None;
-        goal_sub
-            .for_each(&lim, |m| match GoalKind::from_u32(m.kind) {
-                Some(GoalKind::Pose) => pose_goal = Some((m.pose_p, m.pose_q)),
-                _ => {
-                    core.set_goal(m.q);
-                    pose_goal = None;
-                }
-            })
-            .map_err(|e| e.to_string())?;
+        let pose_goal = match take_goal(&mut goal_sub, &lim)? {
+            Some(GoalRequest::Joint(q)) => {
+                core.set_goal(q);
+                None
+            }
+            Some(GoalRequest::Pose(p, q)) => Some((p, q)),
+            None => None,
+        };
         if let Some((p, q)) = pose_goal {
             if !core.set_pose_goal(&model, &p, &q, &state.q) {
                 rep.pose_goals_unreachable += 1;
