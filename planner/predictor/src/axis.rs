@@ -18,6 +18,9 @@
 //! The bound on this forecast's error is calibrated online per track ([`AxisPrecession`]
 //! keeps its own past forecasts and scores them when the horizon has passed).
 
+use dkrrt_collision::quat_rotate;
+use dkrrt_koopman::debris_state::quat_mul;
+
 /// Samples kept for the chord differences (at 50 Hz: 0.3 s).
 const RING: usize = 16;
 
@@ -41,9 +44,7 @@ pub struct AxisPrecession {
 
 /// The body z axis of the attitude `q` (body → frame, `(w, x, y, z)`).
 pub fn body_z(q: &[f64]) -> [f64; 3] {
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
-    [2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)]
+    quat_rotate(&unit(q), &[0.0, 0.0, 1.0])
 }
 
 /// Angle between two axes of an end-to-end symmetric shape (a line: `u` and `−u` are the
@@ -59,13 +60,9 @@ fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
-fn rotate_body(q: &[f64], v: &[f64; 3]) -> [f64; 3] {
+fn unit(q: &[f64]) -> [f64; 4] {
     let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
-    let u = [x, y, z];
-    let t = cross(&u, v).map(|c| 2.0 * c);
-    let ut = cross(&u, &t);
-    [v[0] + w * t[0] + ut[0], v[1] + w * t[1] + ut[1], v[2] + w * t[2] + ut[2]]
+    [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
 }
 
 /// `v` turned by the rotation vector `r` (Rodrigues).
@@ -117,7 +114,7 @@ impl AxisPrecession {
             return;
         }
         let z = body_z(q);
-        self.w_rate = rotate_body(q, &[w_body[0], w_body[1], w_body[2]]);
+        self.w_rate = quat_rotate(&unit(q), &[w_body[0], w_body[1], w_body[2]]);
         // Chord to the newest ring sample at least LAG old.
         let mut chord = None;
         for j in 0..self.len {
@@ -201,15 +198,6 @@ impl AxisPrecession {
         r.iter_mut().for_each(|x| *x /= n);
         quat_mul(&r, q)
     }
-}
-
-fn quat_mul(a: &[f64; 4], b: &[f64]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
 }
 
 fn solve3(m: &[[f64; 3]; 3], r: &[f64; 3]) -> Option<[f64; 3]> {
