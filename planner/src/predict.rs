@@ -272,6 +272,9 @@ impl PredictorCore {
     /// precession and that forecast's calibrated bound, other shapes the full attitude
     /// forecast and bound), `sigma_pos_m` = the position bound alone (for the bounding sphere). Returns the number of tracks written (0: nothing to publish).
     pub fn forecast_into(&mut self, msg: &mut DebrisForecast) -> usize {
+        for e in &self.radii {
+            self.pred.set_shape(e.0, &e.2);
+        }
         let n = self.pred.forecast(&mut self.buf);
         let h = self.buf.horizon();
         let dt = self.buf.dt();
@@ -286,7 +289,7 @@ impl PredictorCore {
         for i in 0..n {
             let id = self.buf.id(i);
             let (radius, shape) = self.shape(id);
-            let axis_only = attitude_channel(&shape) == AttitudeChannel::Axis;
+            let channel = attitude_channel(&shape);
             let tr = &mut msg.tracks[i];
             tr.id = id;
             tr.bounding_radius = radius;
@@ -300,13 +303,12 @@ impl PredictorCore {
                 let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
                 let pa = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
                 let pc = [c[0] - b[0], c[1] - b[1], c[2] - b[2]];
-                let mut qa = [a[6], a[7], a[8], a[9]];
-                let mut qc = [c[6], c[7], c[8], c[9]];
-                if axis_only {
+                let (mut qa, mut qc) = (self.buf.attitude(i, j), self.buf.attitude(i, j + 1));
+                if channel == AttitudeChannel::Axis {
                     // A rod: its axis from the precession forecast (the spin about it is
                     // irrelevant to the shape and poorly predictable).
-                    qa = AxisPrecession::align(&qa, &self.buf.axis(i, j));
-                    qc = AxisPrecession::align(&qc, &self.buf.axis(i, j + 1));
+                    qa = AxisPrecession::align(&[a[6], a[7], a[8], a[9]], &self.buf.axis(i, j));
+                    qc = AxisPrecession::align(&[c[6], c[7], c[8], c[9]], &self.buf.axis(i, j + 1));
                 }
                 // The same interpolation the planner reads the forecast with.
                 let (p, q) = interpolate_pose(&pa, &qa, &pc, &qc, f);
@@ -319,7 +321,7 @@ impl PredictorCore {
                         &shape,
                         radius,
                         pos,
-                        self.buf.att_radius(i, kk),
+                        self.buf.attitude_radius(i, kk),
                         self.buf.axis_radius(i, kk),
                     ),
                     sigma_pos_m: pos,

@@ -218,15 +218,15 @@ fn solve3(m: &[[f64; 3]; 3], r: &[f64; 3]) -> Option<[f64; 3]> {
     Some([col(0) / det, col(1) / det, col(2) / det])
 }
 
-/// Longest forecast (steps) [`AxisChannel`] calibrates.
-pub const MAX_STEPS: usize = 64;
+use crate::calib::StepScores;
+pub use crate::calib::MAX_STEPS;
 
 /// One track's axis forecast and its online calibration: [`AxisPrecession`] plus its own
 /// forecasts taken every model step `dt`, each scored against the filtered axis when `k`
-/// steps have passed. Per step `k` the score is a decaying maximum (time constant
-/// [`AxisChannel::STAT_TAU`]) of the angles seen; the bound `k` steps ahead is
-/// `floor + factor · max_{j ≤ k} score_j`. Steps not yet scored since the track began (a
-/// young track) have no calibrated bound: the caller falls back to the attitude model's.
+/// steps have passed ([`StepScores`]: per step a decaying maximum of the angles seen; the
+/// bound `k` steps ahead is `floor + factor · max_{j ≤ k} score_j`). Steps not yet scored
+/// since the track began (a young track) have no calibrated bound: the caller falls back to
+/// the attitude model's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisChannel {
     /// The precession estimate.
@@ -236,8 +236,7 @@ pub struct AxisChannel {
     snap_w: [[f64; 3]; MAX_STEPS + 1],
     head: usize,
     len: usize,
-    score: [f64; MAX_STEPS],
-    scored: [bool; MAX_STEPS],
+    scores: StepScores,
     last_round: f64,
 }
 
@@ -248,8 +247,6 @@ impl Default for AxisChannel {
 }
 
 impl AxisChannel {
-    /// Memory of the per-step scores, s.
-    pub const STAT_TAU: f64 = 20.0;
     /// Chords the precession estimate needs before its forecasts are scored and its bound is
     /// used (at 50 Hz: 1 s); before, the caller uses the attitude model's bound.
     pub const MATURE: u32 = 50;
@@ -262,8 +259,7 @@ impl AxisChannel {
             snap_w: [[0.0; 3]; MAX_STEPS + 1],
             head: 0,
             len: 0,
-            score: [0.0; MAX_STEPS],
-            scored: [false; MAX_STEPS],
+            scores: StepScores::new(),
             last_round: f64::NAN,
         }
     }
@@ -280,10 +276,7 @@ impl AxisChannel {
         if self.last_round.is_finite() && t - self.last_round < dt - 1e-9 {
             return;
         }
-        if self.last_round.is_finite() {
-            let f = (-(t - self.last_round) / Self::STAT_TAU).exp();
-            self.score.iter_mut().for_each(|s| *s *= f);
-        }
+        self.scores.decay(t);
         self.last_round = t;
         let z = self.prec.z;
         for j in 0..self.len {
@@ -294,9 +287,7 @@ impl AxisChannel {
                 continue;
             }
             let p = rotate(&self.snap_w[i].map(|w| w * tau), &self.snap_z[i]);
-            let e = line_angle(&p, &z);
-            self.score[k - 1] = self.score[k - 1].max(e);
-            self.scored[k - 1] = true;
+            self.scores.add(k, line_angle(&p, &z));
         }
         if self.prec.n < Self::MATURE {
             return;
@@ -311,29 +302,16 @@ impl AxisChannel {
     /// Calibrated bound `k` steps ahead (`1 ≤ k`), rad, or `None` if step `k` has not been
     /// scored yet.
     pub fn radius(&self, k: usize, floor: f64, factor: f64) -> Option<f64> {
-        let k = k.clamp(1, MAX_STEPS);
-        if !self.scored[k - 1] || self.prec.n < Self::MATURE {
-            return None;
-        }
-        let m = self.score[..k].iter().fold(0.0f64, |a, &b| a.max(b));
-        Some(floor + factor * m)
+        (self.prec.n >= Self::MATURE).then(|| self.scores.radius(k, floor, factor)).flatten()
     }
 
     /// [`AxisChannel::radius`] for `k = 1, 2, …` into `out[k − 1]` while step `k` is scored;
-    /// returns how many were written (the rest: no calibrated bound). O(len).
+    /// returns how many were written (the rest: no calibrated bound).
     pub fn radii(&self, floor: f64, factor: f64, out: &mut [f64]) -> usize {
         if self.prec.n < Self::MATURE {
             return 0;
         }
-        let mut m: f64 = 0.0;
-        for (k, o) in out.iter_mut().enumerate().take(MAX_STEPS) {
-            if !self.scored[k] {
-                return k;
-            }
-            m = m.max(self.score[k]);
-            *o = floor + factor * m;
-        }
-        out.len().min(MAX_STEPS)
+        self.scores.radii(floor, factor, out)
     }
 
     /// Forget the precession estimate and the forecasts made with it (after an attitude

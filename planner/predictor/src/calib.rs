@@ -123,6 +123,71 @@ impl ForecastScore {
     }
 }
 
+/// Longest forecast (steps) a [`StepScores`] covers.
+pub const MAX_STEPS: usize = 64;
+
+/// Per-step error scores of one forecast channel: a decaying maximum (time constant
+/// [`StepScores::STAT_TAU`]) of the errors seen `k` steps ahead, and the bound
+/// `floor + factor · max_{j ≤ k} score_j` (never shrinking with the horizon). Fixed size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepScores {
+    score: [f64; MAX_STEPS],
+    scored: [bool; MAX_STEPS],
+    last_decay: f64,
+}
+
+impl Default for StepScores {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl StepScores {
+    /// Memory of the scores, s.
+    pub const STAT_TAU: f64 = 20.0;
+
+    pub fn new() -> Self {
+        StepScores { score: [0.0; MAX_STEPS], scored: [false; MAX_STEPS], last_decay: f64::NAN }
+    }
+
+    /// Decays every score to time `t`.
+    pub fn decay(&mut self, t: f64) {
+        if self.last_decay.is_finite() {
+            let f = (-(t - self.last_decay).max(0.0) / Self::STAT_TAU).exp();
+            self.score.iter_mut().for_each(|s| *s *= f);
+        }
+        self.last_decay = t;
+    }
+
+    /// An error `e` seen `k` steps ahead (`1 ≤ k ≤ MAX_STEPS`; others are ignored).
+    pub fn add(&mut self, k: usize, e: f64) {
+        if (1..=MAX_STEPS).contains(&k) {
+            self.score[k - 1] = self.score[k - 1].max(e);
+            self.scored[k - 1] = true;
+        }
+    }
+
+    /// The bound `k` steps ahead, or `None` while step `k` has not been scored.
+    pub fn radius(&self, k: usize, floor: f64, factor: f64) -> Option<f64> {
+        let k = k.clamp(1, MAX_STEPS);
+        self.scored[k - 1].then(|| floor + factor * self.score[..k].iter().fold(0.0f64, |a, &b| a.max(b)))
+    }
+
+    /// [`StepScores::radius`] for `k = 1, 2, …` into `out[k − 1]` while step `k` is scored;
+    /// returns how many were written.
+    pub fn radii(&self, floor: f64, factor: f64, out: &mut [f64]) -> usize {
+        let mut m: f64 = 0.0;
+        for (k, o) in out.iter_mut().enumerate().take(MAX_STEPS) {
+            if !self.scored[k] {
+                return k;
+            }
+            m = m.max(self.score[k]);
+            *o = floor + factor * m;
+        }
+        out.len().min(MAX_STEPS)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

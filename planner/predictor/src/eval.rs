@@ -339,13 +339,13 @@ pub fn surface_sample(
         attitude_channel, sphere_is_tighter, surface_excess, surface_sigma, AttitudeChannel,
     };
     let x = buf.state(j, k);
-    let mut q = [x[6], x[7], x[8], x[9]];
+    let mut q = buf.attitude(j, k);
     if attitude_channel(shape) == AttitudeChannel::Axis {
-        q = crate::axis::AxisPrecession::align(&q, &buf.axis(j, k));
+        q = crate::axis::AxisPrecession::align(&[x[6], x[7], x[8], x[9]], &buf.axis(j, k));
     }
     let p = [x[0], x[1], x[2]];
     let pos = buf.pos_radius(j, k);
-    let sigma = surface_sigma(shape, radius, pos, buf.att_radius(j, k), buf.axis_radius(j, k));
+    let sigma = surface_sigma(shape, radius, pos, buf.attitude_radius(j, k), buf.axis_radius(j, k));
     let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
     if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
         let d = ((p[0] - pt[0]).powi(2) + (p[1] - pt[1]).powi(2) + (p[2] - pt[2]).powi(2)).sqrt();
@@ -379,6 +379,9 @@ pub fn evaluate(
             continue;
         }
         next_eval += eval_every;
+        for (id, shape, _) in &rec.shapes {
+            pred.set_shape(*id, shape);
+        }
         pred.forecast(&mut buf);
         for j in 0..buf.len() {
             for (hj, &h) in horizons.iter().enumerate() {

@@ -20,6 +20,7 @@
 
 pub mod axis;
 pub mod calib;
+pub mod euler;
 pub mod eval;
 pub mod filter;
 mod kernels;

@@ -4,6 +4,7 @@
 
 use crate::axis::AxisChannel;
 use crate::calib::ForecastScore;
+use crate::euler::EulerChannel;
 use crate::filter::{propagate, quat_angle, FilterConfig, TrackFilter};
 use crate::models::{Engine, Job, Method, Models};
 use dkrrt_debris::Observation;
@@ -181,6 +182,7 @@ struct Track {
     events: u32,
     last_residual: [f64; 2],
     axis: AxisChannel,
+    euler: EulerChannel,
     score: ForecastScore,
 }
 
@@ -218,6 +220,8 @@ pub struct ForecastBuffer {
     att_radius: Vec<f64>,
     axis: Vec<[f64; 3]>,
     axis_radius: Vec<f64>,
+    full_q: Vec<[f64; 4]>,
+    full_radius: Vec<f64>,
 }
 
 impl ForecastBuffer {
@@ -234,6 +238,8 @@ impl ForecastBuffer {
             att_radius: vec![0.0; MAX_TRACKS * h],
             axis: vec![[0.0; 3]; MAX_TRACKS * h],
             axis_radius: vec![0.0; MAX_TRACKS * h],
+            full_q: vec![[1.0, 0.0, 0.0, 0.0]; MAX_TRACKS * h],
+            full_radius: vec![0.0; MAX_TRACKS * h],
         }
     }
     /// Buffer matching a predictor.
@@ -296,6 +302,16 @@ impl ForecastBuffer {
     pub fn axis_radius(&self, i: usize, k: usize) -> f64 {
         self.axis_radius[i * self.h + k - 1]
     }
+    /// Forecast `i`'s attitude `k` steps ahead for a shape that needs the full attitude: the
+    /// torque-free forecast ([`crate::euler`]) at the steps where its calibrated bound is the
+    /// smaller, else the model's ([`ForecastBuffer::state`]).
+    pub fn attitude(&self, i: usize, k: usize) -> [f64; 4] {
+        self.full_q[i * self.h + k - 1]
+    }
+    /// Error bound of [`ForecastBuffer::attitude`], rad.
+    pub fn attitude_radius(&self, i: usize, k: usize) -> f64 {
+        self.full_radius[i * self.h + k - 1]
+    }
 }
 
 /// Online debris predictor for up to [`MAX_TRACKS`] objects (association by id).
@@ -357,6 +373,7 @@ impl DebrisPredictor {
             events: 0,
             last_residual: [f64::NAN; 2],
             axis: AxisChannel::new(),
+            euler: EulerChannel::new(),
             score: ForecastScore::new(models.horizon, models.dt),
         };
         DebrisPredictor {
@@ -374,6 +391,16 @@ impl DebrisPredictor {
             cfg,
             stats: GateStats::default(),
             t_latest: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Tells the predictor the shape of debris `id` (its contract descriptor): a box gets the
+    /// torque-free attitude forecast with the shape's inertia ([`crate::euler`]), other shapes
+    /// none. Takes effect for a track that exists (call it again for later ones; unchanged
+    /// shapes cost a lookup).
+    pub fn set_shape(&mut self, id: u32, shape: &dkrrt_msg::DebrisShape) {
+        if let Some(s) = self.slot_of(id) {
+            self.tracks[s].euler.set_inertia(crate::euler::inertia_hint(shape));
         }
     }
 
@@ -436,6 +463,9 @@ impl DebrisPredictor {
         let cfg = &self.cfg;
         let m = &self.models;
         let tr = &mut self.tracks[slot];
+        // The shape (and the inertia it suggests) belongs to the id: kept when a track is
+        // re-initialised, forgotten when the slot goes to another object.
+        let same_object = tr.active && tr.id == o.id;
         tr.active = true;
         tr.id = o.id;
         let mut q = o.q;
@@ -461,6 +491,11 @@ impl DebrisPredictor {
         tr.events = 0;
         tr.last_residual = [f64::NAN; 2];
         tr.axis = AxisChannel::new();
+        if same_object {
+            tr.euler.restart();
+        } else {
+            tr.euler = EulerChannel::new();
+        }
         tr.score.clear();
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
         push_hist(tr);
@@ -542,6 +577,7 @@ impl DebrisPredictor {
             self.stats.maneuvers += 1;
         }
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
+        tr.euler.update(o.t, &tr.filter.x[QUAT], self.models.dt, self.models.horizon, self.models.frame_rate);
         {
             let (x, t, fr) = (tr.filter.x, tr.filter.t, self.models.frame_rate);
             tr.score.score(o.t, |tau| {
@@ -603,6 +639,7 @@ impl DebrisPredictor {
                 tr.att_bound.grow(ra, ra / dt);
                 tr.rls_a.reset_covariance();
                 tr.axis.restart();
+                tr.euler.restart();
                 tr.last_event_t[1] = o.t;
             }
             if ev_p || ev_a {
@@ -697,6 +734,27 @@ impl DebrisPredictor {
             let n_cal = tr.axis.radii(floor[1], factor, &mut buf.axis_radius[rows.clone()]);
             let (ar, at) = (&mut buf.axis_radius[rows.clone()], &buf.att_radius[rows]);
             ar[n_cal..].copy_from_slice(&at[n_cal..]);
+            // Full attitude: the model's, or beyond the model's own calibrated window the
+            // torque-free forecast where that is calibrated tighter.
+            let rows = k * hb..k * hb + h;
+            for o in rows.clone() {
+                let x = &buf.states[o * N..(o + 1) * N];
+                buf.full_q[o] = [x[6], x[7], x[8], x[9]];
+                buf.full_radius[o] = buf.att_radius[o];
+            }
+            let mut er = [0.0; crate::calib::MAX_STEPS];
+            let n_e = tr.euler.radii(floor[1], factor, &mut er[..h.min(crate::calib::MAX_STEPS)]);
+            let first = self.cfg.calib_steps.min(n_e);
+            if (first..n_e).any(|s| er[s] < buf.att_radius[k * hb + s]) {
+                let mut eq = [[0.0; 4]; crate::calib::MAX_STEPS];
+                tr.euler.attitudes_into(self.models.frame_rate, tr.filter.t, buf.dt, &mut eq[..n_e]);
+                for s in first..n_e {
+                    let o = k * hb + s;
+                    if er[s] < buf.full_radius[o] {
+                        (buf.full_q[o], buf.full_radius[o]) = (eq[s], er[s]);
+                    }
+                }
+            }
             buf.ids[k] = tr.id;
             buf.t0[k] = tr.filter.t;
         }

@@ -44,6 +44,10 @@ fn observe_and_forecast_do_not_allocate() {
             for (i, o) in rec.obs[split..].iter().enumerate() {
                 pr.observe(o);
                 if i % 40 == 0 {
+                    // Shapes as the process passes them: boxes run the torque-free channel.
+                    for (id, shape, _) in &rec.shapes {
+                        pr.set_shape(*id, shape);
+                    }
                     forecasts += pr.forecast(&mut buf);
                 }
             }

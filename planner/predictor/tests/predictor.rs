@@ -302,3 +302,61 @@ fn published_bounds_are_calibrated_online_and_monotone() {
     assert!((buf.pos_radius(0, cfg.calib_steps + 1) - 0.05).abs() < 1e-9, "fitted beyond");
     assert!(factor > 1.0);
 }
+
+#[test]
+fn boxes_get_the_torque_free_attitude_beyond_the_calibrated_window() {
+    // Tumbling boxes and panels (ids 2, 3, 5, 7) and rods; observed for 5.9 s, checked 4 s
+    // later (before the scene's first event at 10 s).
+    let scene = dkrrt_predictor::eval::perturbed_scene("tumbling-rods", 11, 1.0).unwrap();
+    let rec = record(&scene, SensorConfig::default(), 10.0, 0.01, 5).unwrap();
+    // Constant rate with an honest attitude bound (a tumbler can be anywhere by 4 s).
+    let models = Models::constant_velocity(0.1, 40, rec.mean_motion, 0.05, 3.0);
+    let run = |with_shapes: bool| {
+        let mut pr = DebrisPredictor::new(models.clone(), PredictorConfig::default());
+        let mut buf = ForecastBuffer::for_predictor(&pr);
+        for o in rec.obs.iter().filter(|o| o.t <= 5.9) {
+            pr.observe(o);
+            if with_shapes {
+                for (id, shape, _) in &rec.shapes {
+                    pr.set_shape(*id, shape);
+                }
+            }
+        }
+        pr.forecast(&mut buf);
+        buf
+    };
+    let (plain, shaped) = (run(false), run(true));
+    let cw = PredictorConfig::default().calib_steps;
+    let mut boxes = 0;
+    for (id, shape, _) in &rec.shapes {
+        let (Some(i), Some(j)) = (plain.index_of(*id), shaped.index_of(*id)) else { continue };
+        let is_box = dkrrt_predictor::euler::inertia_hint(shape).is_some();
+        for k in 1..=40 {
+            // Within the model's calibrated window and for other shapes: the model's forecast.
+            if !is_box || k <= cw {
+                let x = shaped.state(j, k);
+                assert_eq!(shaped.attitude(j, k), [x[6], x[7], x[8], x[9]], "id {id} step {k}");
+                assert_eq!(shaped.attitude_radius(j, k), shaped.att_radius(j, k), "id {id} step {k}");
+            }
+        }
+        if !is_box {
+            continue;
+        }
+        boxes += 1;
+        let truth = rec.truth.at(*id, shaped.t0(j) + 4.0).unwrap();
+        let e_model = quat_angle(&plain.state(i, 40)[6..10], &truth[6..10]);
+        let e_euler = quat_angle(&shaped.attitude(j, 40), &truth[6..10]);
+        assert!(e_euler <= shaped.attitude_radius(j, 40), "id {id}: {e_euler} outside its bound");
+        assert!(
+            shaped.attitude_radius(j, 40) < 0.5 * plain.att_radius(i, 40),
+            "id {id}: bound {} vs the model's {}",
+            shaped.attitude_radius(j, 40),
+            plain.att_radius(i, 40)
+        );
+        assert!(
+            e_euler < 0.1 && e_euler < e_model,
+            "id {id}: torque-free {e_euler} vs constant rate {e_model}"
+        );
+    }
+    assert_eq!(boxes, 4, "two boxes and two panels");
+}
