@@ -142,7 +142,10 @@ impl DebrisSide {
             }
         }
         let t = self.world.time();
-        let pr = proximity(&self.capsules, &self.obstacles, self.margin, &mut self.contacts);
+        let mut pr = proximity(&self.capsules, &self.obstacles, self.margin, &mut self.contacts);
+        // Reported distances are separations: 0 when touching or overlapping (the closed-form
+        // primitives measure a penetration, parry's hulls do not; one convention in reports).
+        pr.min_distance = pr.min_distance.max(0.0);
         let s = &mut self.stats;
         s.ticks_checked += 1;
         if pr.min_distance.is_finite() && s.min_distance_m.is_none_or(|m| pr.min_distance < m) {
@@ -156,7 +159,7 @@ impl DebrisSide {
             if s.first_contact.is_none() {
                 let c = self.contacts[0];
                 s.first_contact =
-                    Some(Contact { t_s: t, link: c.link, debris_id: c.id, distance_m: c.distance });
+                    Some(Contact { t_s: t, link: c.link, debris_id: c.id, distance_m: c.distance.max(0.0) });
             }
             return true;
         }

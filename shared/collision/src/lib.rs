@@ -9,8 +9,8 @@
 //!   ([`DebrisShape`]: sphere, capsule, box with offset) or an exact parry3d shape (the
 //!   simulator's convex hulls), optionally inflated by a radius.
 //! * [`proximity`] measures the smallest separation between the arm and the obstacles, with a
-//!   bounding-sphere broad phase, analytic narrow phases for spheres and capsules and parry3d
-//!   (GJK) for boxes and hulls. [`clearance`] is the same with an early exit below a threshold,
+//!   bounding-sphere broad phase, closed-form narrow phases for spheres, capsules and boxes
+//!   ([`seg_box`]: exact, no iteration) and parry3d (GJK) for the simulator's hulls. [`clearance`] is the same with an early exit below a threshold,
 //!   for the planner's yes/no checks.
 //!
 //! Everything here is allocation-free (tested with a counting allocator).
@@ -23,7 +23,7 @@ use dkrrt_msg::{DebrisShape, ShapeKind};
 use parry3d_f64::glamx::DQuat;
 use parry3d_f64::math::{Pose, Vector as PVec};
 use parry3d_f64::query;
-use parry3d_f64::shape::{Capsule, Cuboid, Shape, SharedShape};
+use parry3d_f64::shape::{Capsule, Shape, SharedShape};
 
 pub use pose::{interpolate_pose, quat_angle, quat_rotate};
 
@@ -194,9 +194,24 @@ impl Obstacle {
         Obstacle { id, geom, p: c, q: *q, bound, inflate }
     }
 
-    /// An exact parry3d shape at a pose (`bound`: its bounding radius about `p`).
+    /// An exact parry3d shape at a pose (`bound`: its bounding radius about `p`). Balls,
+    /// cuboids and capsules along the local z axis centred on the origin are measured in
+    /// closed form (the same geometry), other shapes through parry3d.
     pub fn from_shape(id: u32, shape: SharedShape, bound: f64, p: &[f64; 3], q: &[f64; 4]) -> Self {
-        Obstacle { id, geom: Geom::Shape(shape), p: *p, q: *q, bound, inflate: 0.0 }
+        let geom = if let Some(b) = shape.as_ball() {
+            Geom::Sphere { r: b.radius }
+        } else if let Some(c) = shape.as_cuboid() {
+            let h = c.half_extents;
+            Geom::Cuboid { half: [h.x, h.y, h.z] }
+        } else if let Some(c) = shape.as_capsule().filter(|c| {
+            let (a, b) = (c.segment.a, c.segment.b);
+            [a.x, a.y, b.x, b.y, a.z + b.z].iter().all(|v| *v == 0.0)
+        }) {
+            Geom::Capsule { half_length: c.segment.b.z.abs(), r: c.radius }
+        } else {
+            Geom::Shape(shape)
+        };
+        Obstacle { id, geom, p: *p, q: *q, bound, inflate: 0.0 }
     }
 
     fn parry_pose(&self) -> Pose {
@@ -215,8 +230,11 @@ impl Obstacle {
                 seg_seg(&c.a, &c.b, &p0, &p1) - c.r - r
             }
             Geom::Cuboid { half } => {
-                let cub = Cuboid::new(PVec::new(half[0], half[1], half[2]));
-                self.parry_distance(c, &cub)
+                // The capsule's axis in the box frame, then the exact segment–box distance.
+                let qc = [self.q[0], -self.q[1], -self.q[2], -self.q[3]];
+                let a = quat_rotate(&qc, &sub(&c.a, &self.p));
+                let b = quat_rotate(&qc, &sub(&c.b, &self.p));
+                seg_box(&a, &b, half) - c.r
             }
             Geom::Shape(s) => self.parry_distance(c, s.as_ref()),
         };
@@ -360,6 +378,66 @@ fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
 #[inline]
 fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Distance from segment `a`–`b` to the axis-aligned box `[−h, h]` (0 when they meet).
+///
+/// Along the segment `x(t) = a + t (b − a)` the squared distance to the box is
+/// `Σ_i max(0, |x_i(t)| − h_i)²`: a convex, piecewise quadratic function of `t` whose pieces
+/// change where a coordinate crosses a face plane `±h_i` (at most six break points). On each
+/// piece the active terms are fixed, so its minimum is closed form; the smallest over the
+/// pieces is exact. Allocation-free, no iteration.
+pub fn seg_box(a: &[f64; 3], b: &[f64; 3], h: &[f64; 3]) -> f64 {
+    let u = sub(b, a);
+    // Break points in (0, 1), with the ends.
+    let mut ts = [0.0f64; 8];
+    let mut n = 1;
+    for i in 0..3 {
+        if u[i] != 0.0 {
+            for face in [-h[i], h[i]] {
+                let t = (face - a[i]) / u[i];
+                if t > 0.0 && t < 1.0 {
+                    ts[n] = t;
+                    n += 1;
+                }
+            }
+        }
+    }
+    ts[n] = 1.0;
+    n += 1;
+    // Insertion sort (≤ 8 values).
+    for i in 1..n {
+        let mut j = i;
+        while j > 0 && ts[j - 1] > ts[j] {
+            ts.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    let mut best = f64::INFINITY;
+    for w in ts[..n].windows(2) {
+        let (t0, t1) = (w[0], w[1]);
+        // Which side each axis is on inside this piece (its midpoint decides).
+        let tm = 0.5 * (t0 + t1);
+        // Quadratic A t² + B t (+ const) of the active terms.
+        let (mut qa, mut qb) = (0.0, 0.0);
+        for i in 0..3 {
+            let x = a[i] + tm * u[i];
+            let off = if x > h[i] {
+                a[i] - h[i]
+            } else if x < -h[i] {
+                a[i] + h[i]
+            } else {
+                continue;
+            };
+            qa += u[i] * u[i];
+            qb += 2.0 * u[i] * off;
+        }
+        let t = if qa > 0.0 { (-qb / (2.0 * qa)).clamp(t0, t1) } else { t0 };
+        // Evaluated directly at the piece's minimiser (no cancellation in the expansion).
+        let d2: f64 = (0..3).map(|i| ((a[i] + t * u[i]).abs() - h[i]).max(0.0).powi(2)).sum();
+        best = best.min(d2);
+    }
+    best.max(0.0).sqrt()
 }
 
 /// Distance from point `p` to segment `a`–`b`.

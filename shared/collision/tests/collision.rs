@@ -47,8 +47,7 @@ fn known_distances_for_every_kind() {
     assert!((r.distance(&c) - 0.85).abs() < 1e-12, "{}", r.distance(&c));
     // Box half extents 0.2 at z = 1: face at z = 0.8, gap 0.8 - 0.1.
     let b = Obstacle::from_desc(3, &DebrisShape::cuboid([0.2; 3], [0.0; 3]), 0.0, &[0.5, 0.0, 1.0], &ID, 0.0);
-    // GJK (boxes) converges to ~1e-8.
-    assert!((b.distance(&c) - 0.7).abs() < 1e-7, "{}", b.distance(&c));
+    assert!((b.distance(&c) - 0.7).abs() < 1e-12, "{}", b.distance(&c));
     // Box with a body offset of -0.3 m in z: the face comes 0.3 m closer.
     let b = Obstacle::from_desc(
         3,
@@ -58,7 +57,7 @@ fn known_distances_for_every_kind() {
         &ID,
         0.0,
     );
-    assert!((b.distance(&c) - 0.4).abs() < 1e-7, "{}", b.distance(&c));
+    assert!((b.distance(&c) - 0.4).abs() < 1e-12, "{}", b.distance(&c));
     // Unknown shape: the bounding sphere.
     let u = Obstacle::from_desc(4, &DebrisShape::default(), 0.3, &[0.5, 0.0, 1.0], &ID, 0.0);
     assert!((u.distance(&c) - 0.6).abs() < 1e-12);
@@ -79,6 +78,50 @@ fn segment_distances_match_brute_force() {
         let exact = seg_seg(&a, &b, &c, &d);
         assert!(exact <= best + 1e-12 && best - exact < 2e-2, "{exact} vs {best}");
     }
+}
+
+#[test]
+fn box_distances_match_parry() {
+    // Oriented boxes against capsules: the closed-form piecewise-quadratic distance equals
+    // parry's GJK (to its tolerance) far, near, touching, crossing and inside.
+    use parry3d_f64::math::Pose;
+    use parry3d_f64::shape::{Capsule, Cuboid};
+    let mut rng = SmallRng::seed_from_u64(5);
+    let mut u = |lo: f64, hi: f64| rng.random_range(lo..hi);
+    let mut zero = 0;
+    for i in 0..3000 {
+        let half = [u(0.01, 0.8), u(0.01, 0.8), u(0.005, 0.5)];
+        let qv = [u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)];
+        let n = qv.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let q = qv.map(|v| v / n);
+        let p = [u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)];
+        let spread = if i % 3 == 0 { 0.3 } else { 2.0 };
+        let a = [u(-spread, spread), u(-spread, spread), u(-spread, spread)];
+        // Some degenerate (point) and axis-parallel segments too.
+        let b = match i % 7 {
+            0 => a,
+            1 => [a[0] + u(-1.0, 1.0), a[1], a[2]],
+            _ => [u(-spread, spread), u(-spread, spread), u(-spread, spread)],
+        };
+        let r = u(0.0, 0.1);
+        let ob = Obstacle::from_desc(1, &DebrisShape::cuboid(half, [0.0; 3]), 0.0, &p, &q, 0.0);
+        let ours = ob.distance(&PosedCapsule::new(a, b, r));
+        let pose = Pose::from_parts(
+            PVec::new(p[0], p[1], p[2]),
+            parry3d_f64::glamx::DQuat::from_xyzw(q[1], q[2], q[3], q[0]),
+        );
+        let cap = Capsule::new(PVec::new(a[0], a[1], a[2]), PVec::new(b[0], b[1], b[2]), r);
+        let cub = Cuboid::new(PVec::new(half[0], half[1], half[2]));
+        let theirs = parry3d_f64::query::distance(&pose, &cub, &Pose::IDENTITY, &cap).unwrap().distance;
+        // parry reports 0 for any overlap; ours −r at most (the axis inside the box).
+        if theirs == 0.0 {
+            zero += 1;
+            assert!(ours <= 1e-7, "{i}: overlap but {ours}");
+        } else {
+            assert!((ours - theirs).abs() < 1e-6, "{i}: {ours} vs parry {theirs}");
+        }
+    }
+    assert!(zero > 100, "overlaps exercised: {zero}");
 }
 
 #[test]
