@@ -9,6 +9,12 @@
 //! separation minus `(V_arm + V_obs)·Δt / 2`. The checker picks `Δt = δ / (V_arm + V_obs)` and
 //! requires every sample to clear the obstacles inflated by `δ/2` more: nothing, however thin
 //! or fast, slips between two samples. At rest `V_arm = 0`, so waits are sampled more sparsely.
+//!
+//! **Broad phase over the stretch.** Before sampling, the tracks that cannot come within the
+//! clearance cap of the arm during the whole stretch are set aside ([`WorldInTime::near`]
+//! against the sphere holding every point the arm can reach, or holding the resting arm):
+//! they change neither the verdict nor the (capped) clearance, and `V_obs` is the largest
+//! speed of the tracks kept, so a fast object far away no longer shortens every sample step.
 
 use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
@@ -44,6 +50,8 @@ pub struct Checker {
     delta: f64,
     q_min: [f64; NJ],
     q_max: [f64; NJ],
+    /// Sphere (centre, radius) holding every arm point at any configuration.
+    reach: ([f64; 3], f64),
     /// Clearances above this are not measured exactly (reported as the cap), m.
     pub cap: f64,
     /// Configurations checked so far.
@@ -58,6 +66,7 @@ impl Checker {
         let (q_min, q_max) = (l.q_min.into(), l.q_max.into());
         let poser = ArmPoser::new(model);
         let arm_speed = poser.max_point_speed(v_max);
+        let reach = poser.reach_sphere();
         Checker {
             poser,
             caps: [PosedCapsule::default(); NJ],
@@ -66,6 +75,7 @@ impl Checker {
             delta: delta_m.max(1e-4),
             q_min,
             q_max,
+            reach,
             cap: 1.0,
             configs_checked: 0,
         }
@@ -144,18 +154,33 @@ impl Checker {
         if t1c < t0 {
             return out;
         }
-        let v = world.max_speed() + if moving { self.arm_speed } else { 0.0 };
-        let dt_min = self.spacing(world, moving);
         let half = 0.5 * self.delta;
+        // Broad phase: the tracks that can come within the cap of the arm in [t0, t1c].
+        let (centre, radius) = if moving {
+            self.reach
+        } else {
+            self.poser.pose(&at(t0), &mut self.caps);
+            bounding_sphere(&self.caps)
+        };
+        let (mask, v_obs) = world.near(t0, t1c, &centre, radius + self.cap, half);
+        let v = v_obs + if moving { self.arm_speed } else { 0.0 };
+        let dt_min = if v <= 1e-9 { 0.5 } else { (self.delta / v).min(0.5) };
         let mut t = t0;
         loop {
             let c = if moving || out.samples == 0 {
                 let q = at(t);
-                self.clearance_at(world, &q, t, half, 0.0)
+                self.configs_checked += 1;
+                if !self.in_limits(&q) {
+                    -1.0
+                } else {
+                    self.poser.pose(&q, &mut self.caps);
+                    world.obstacles_at_masked(t, half, mask, &mut self.obs);
+                    clearance(&self.caps, &self.obs, 0.0, self.cap)
+                }
             } else {
                 // At rest the arm's pose is already computed.
                 self.configs_checked += 1;
-                world.obstacles_at(t, half, &mut self.obs);
+                world.obstacles_at_masked(t, half, mask, &mut self.obs);
                 clearance(&self.caps, &self.obs, 0.0, self.cap)
             };
             out.samples += 1;
@@ -175,4 +200,23 @@ impl Checker {
         }
         out
     }
+}
+
+/// A sphere holding every capsule (centre: the mean of their centres).
+fn bounding_sphere(caps: &[PosedCapsule]) -> ([f64; 3], f64) {
+    let n = caps.len().max(1) as f64;
+    let mut c = [0.0; 3];
+    for k in caps {
+        (0..3).for_each(|i| c[i] += k.centre[i] / n);
+    }
+    let r = caps
+        .iter()
+        .map(|k| {
+            let d =
+                ((k.centre[0] - c[0]).powi(2) + (k.centre[1] - c[1]).powi(2) + (k.centre[2] - c[2]).powi(2))
+                    .sqrt();
+            d + k.bound
+        })
+        .fold(0.0, f64::max);
+    (c, r)
 }

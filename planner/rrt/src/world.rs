@@ -188,8 +188,40 @@ impl WorldInTime {
 
     /// Writes every track's obstacle at time `t`, inflated by σ(t) + margin + `extra`.
     pub fn obstacles_at(&self, t: f64, extra: f64, out: &mut Vec<Obstacle>) {
+        self.obstacles_at_masked(t, extra, u64::MAX, out);
+    }
+
+    /// The tracks whose inflated shape (inflated by `extra` more) can come within `reach` of
+    /// the sphere (`centre`, `radius`) at some time in `[t0, t1]`, as a bit mask (bit `i`:
+    /// track `i`), and the largest [`Track`] speed among them. Conservative: at the window's
+    /// middle a track's inflated shape lies within its bounding radius + σ + margin + extra of
+    /// its centre, and centre and σ together move at most its speed (the bound
+    /// [`WorldInTime::max_speed`] is made of), so over the half window it stays inside that
+    /// sphere grown by speed × half window.
+    pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
+        const _: () = assert!(MAX_DEBRIS <= 64);
+        let (tm, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0).max(0.0));
+        let (mut mask, mut v) = (0u64, 0.0f64);
+        for (i, tr) in self.tracks[..self.n].iter().enumerate() {
+            let (p, _, sigma, sigma_pos, _) = pose_at(tr, tm);
+            let r = tr.radius + sigma.max(sigma_pos) + self.margin + extra + tr.speed * half;
+            let d =
+                ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2)).sqrt();
+            if !(d - r - radius > 0.0) {
+                mask |= 1 << i;
+                v = v.max(tr.speed);
+            }
+        }
+        (mask, v)
+    }
+
+    /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
+    pub fn obstacles_at_masked(&self, t: f64, extra: f64, mask: u64, out: &mut Vec<Obstacle>) {
         out.clear();
-        for tr in &self.tracks[..self.n] {
+        for (i, tr) in self.tracks[..self.n].iter().enumerate() {
+            if mask >> i & 1 == 0 {
+                continue;
+            }
             let (p, q, sigma, sigma_pos, sphere) = pose_at(tr, t);
             let base = self.margin + extra;
             // The shape inflated by its surface bound, or the bounding sphere by the position

@@ -237,3 +237,71 @@ fn world_interpolates_and_extrapolates_past_the_horizon() {
     // The speed bound covers the motion: 1 m/s + the turn's ω·R + σ growth.
     assert!(w.max_speed() >= 1.0 + (std::f64::consts::FRAC_PI_2 / 0.1) * 0.5);
 }
+
+#[test]
+fn the_broad_phase_never_sets_aside_a_track_that_comes_near() {
+    // Random moving, turning, growing tracks; random windows and spheres: every track whose
+    // inflated shape comes within the reach of the sphere at a sampled time of the window is
+    // in the mask, and the mask's speed bounds the kept tracks.
+    use dkrrt_collision::PosedCapsule;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+    let mut rng = SmallRng::seed_from_u64(9);
+    let shapes = [
+        DebrisShape::sphere(0.2),
+        DebrisShape::capsule(0.8, 0.05),
+        DebrisShape::cuboid([0.6, 0.3, 0.02], [0.0; 3]),
+    ];
+    let mut kept_near = 0;
+    for round in 0..200 {
+        let mut w = WorldInTime::new(0.05);
+        for id in 0..8u32 {
+            let p0: [f64; 3] = std::array::from_fn(|_| rng.random_range(-4.0..4.0));
+            let v: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.5..0.5));
+            let wz = rng.random_range(-2.0..2.0);
+            let s0 = rng.random_range(0.0..0.1);
+            let poses: Vec<TimedPose> = (0..=40)
+                .map(|k| {
+                    let t = 0.1 * k as f64;
+                    let a = 0.5 * wz * t;
+                    TimedPose {
+                        t,
+                        p: [p0[0] + v[0] * t, p0[1] + v[1] * t, p0[2] + v[2] * t],
+                        q: [a.cos(), 0.0, 0.0, a.sin()],
+                        sigma: s0 + 0.05 * t,
+                        sigma_pos: s0 + 0.02 * t,
+                    }
+                })
+                .collect();
+            let after = if round % 2 == 0 { After::Hold } else { After::Extrapolate };
+            w.push_track(id, shapes[id as usize % 3], &poses, after).unwrap();
+        }
+        let t0 = rng.random_range(0.0..5.0);
+        let t1 = t0 + rng.random_range(0.0..3.0);
+        let centre: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let (radius, extra) = (rng.random_range(0.2..1.5), 0.015);
+        let (mask, v) = w.near(t0, t1, &centre, radius, extra);
+        // A probe sphere as a zero-length capsule of that radius.
+        let probe = PosedCapsule::new(centre, centre, radius);
+        let mut obs = Vec::with_capacity(32);
+        for k in 0..=60 {
+            let t = t0 + (t1 - t0) * k as f64 / 60.0;
+            w.obstacles_at(t, extra, &mut obs);
+            for (i, o) in obs.iter().enumerate() {
+                if o.distance(&probe) <= 0.0 {
+                    assert!(
+                        mask >> i & 1 == 1,
+                        "round {round}: track {i} comes near at {t} but is set aside"
+                    );
+                    kept_near += 1;
+                }
+            }
+        }
+        for i in 0..w.len() {
+            if mask >> i & 1 == 1 {
+                assert!(v > 0.0 && v <= w.max_speed() + 1e-12);
+            }
+        }
+    }
+    assert!(kept_near > 100, "near cases exercised: {kept_near}");
+}

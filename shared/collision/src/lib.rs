@@ -82,6 +82,16 @@ impl ArmPoser {
     }
 
     /// The capsules at joint positions `q`.
+    /// A sphere (centre, radius) holding every point of every collision capsule at any
+    /// configuration: centred on the first joint's origin (on its axis, so fixed), with that
+    /// joint's lever arm as radius (the farthest capsule point along the chain, by the
+    /// triangle inequality over the joint-to-joint hops).
+    pub fn reach_sphere(&self) -> ([f64; 3], f64) {
+        let p0 = self.model.link_poses(&JVec::zeros())[0].translation.vector;
+        let o = &self.offset;
+        ([p0.x + o[0], p0.y + o[1], p0.z + o[2]], self.lever[0])
+    }
+
     pub fn pose(&self, q: &[f64; NJ], out: &mut [PosedCapsule; NJ]) {
         let poses = self.model.link_poses(&JVec::from(*q));
         let o = &self.offset;

@@ -264,3 +264,26 @@ fn posing_and_checking_allocate_nothing() {
     });
     assert_eq!((st.allocs, st.reallocs, st.deallocs), (0, 0, 0), "{st:?}");
 }
+
+#[test]
+fn the_reach_sphere_holds_the_arm_at_any_configuration() {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let (c, r) = poser.reach_sphere();
+    let l = poser.model().limits();
+    let mut rng = SmallRng::seed_from_u64(4);
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut farthest: f64 = 0.0;
+    for _ in 0..5000 {
+        let q: [f64; NJ] = std::array::from_fn(|i| rng.random_range(l.q_min[i]..=l.q_max[i]));
+        poser.pose(&q, &mut caps);
+        for k in &caps {
+            for e in [k.a, k.b] {
+                let d = ((e[0] - c[0]).powi(2) + (e[1] - c[1]).powi(2) + (e[2] - c[2]).powi(2)).sqrt() + k.r;
+                assert!(d <= r + 1e-9, "{d} > {r}");
+                farthest = farthest.max(d);
+            }
+        }
+    }
+    // Not uselessly loose either.
+    assert!(farthest > 0.6 * r, "farthest {farthest} of {r}");
+}
