@@ -1,4 +1,5 @@
-//! Benchmarks: forecast of 32 debris × 40 steps per method, and `observe()` per observation.
+//! Benchmarks: forecast of 32 debris × 40 steps per method, and `observe()` per observation
+//! (shapes set: box tracks run the torque-free attitude channel).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use dkrrt_debris::{RandomSceneParams, Scene, SensorConfig};
@@ -39,6 +40,10 @@ fn bench(c: &mut Criterion) {
         for o in &test.obs[..warm] {
             pr.observe(o);
         }
+        // Shapes as the process passes them: boxes run the torque-free attitude forecast.
+        for (id, shape, _) in &test.shapes {
+            pr.set_shape(*id, shape);
+        }
         let mut buf = ForecastBuffer::for_predictor(&pr);
         assert_eq!(pr.forecast(&mut buf), 32);
         let label = if method == Method::ConstantVelocity {
@@ -60,6 +65,9 @@ fn bench(c: &mut Criterion) {
                         pr = DebrisPredictor::new(pr.models().clone(), PredictorConfig::default());
                         for o in &test.obs[..warm] {
                             pr.observe(o);
+                        }
+                        for (id, shape, _) in &test.shapes {
+                            pr.set_shape(*id, shape);
                         }
                         i = warm;
                     }

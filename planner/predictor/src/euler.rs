@@ -147,7 +147,7 @@ impl EulerChannel {
     /// Grid of the fit's samples, s.
     pub const EVERY: f64 = 0.1;
     /// Gauss–Newton iterations of a fit (each from the previous fit's rate).
-    pub const ITERATIONS: usize = 3;
+    pub const ITERATIONS: usize = 2;
 
     pub fn new() -> Self {
         EulerChannel {
