@@ -19,6 +19,7 @@
 //! attitudes propagated back from the newest one: the filter's instantaneous rate is too
 //! noisy for a 4 s forecast. RK4 with substeps of at most 0.1 s and 0.2 rad of turn. Everything here is fixed size; nothing allocates.
 
+use crate::axis::solve3;
 use crate::calib::{StepScores, MAX_STEPS};
 use crate::filter::quat_angle;
 use dkrrt_koopman::debris_state::quat_mul;
@@ -354,25 +355,6 @@ impl EulerChannel {
         }
         self.scores.radii(floor, factor, out)
     }
-}
-
-fn solve3(m: &[[f64; 3]; 3], r: &[f64; 3]) -> Option<[f64; 3]> {
-    let det3 = |a: &[[f64; 3]; 3]| {
-        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
-    };
-    let det = det3(m);
-    if !(det.abs() > 1e-300) {
-        return None;
-    }
-    let col = |j: usize| {
-        let mut a = *m;
-        for i in 0..3 {
-            a[i][j] = r[i];
-        }
-        det3(&a) / det
-    };
-    Some([col(0), col(1), col(2)])
 }
 
 #[cfg(test)]
