@@ -222,14 +222,17 @@ impl WorldInTime {
             if mask >> i & 1 == 0 {
                 continue;
             }
-            let (p, q, sigma, sigma_pos, sphere) = pose_at(tr, t);
+            let s = state_at(tr, t);
             let base = self.margin + extra;
             // The shape inflated by its surface bound, or the bounding sphere by the position
-            // bound when the attitude is too uncertain for the shape to be the tighter one.
-            let o = if sphere || dkrrt_collision::bounds::sphere_is_tighter(sigma, sigma_pos, tr.lever) {
-                Obstacle::from_desc(tr.id, &DebrisShape::default(), tr.radius, &p, &q, sigma_pos + base)
+            // bound when the attitude is too uncertain for the shape to be the tighter one (the
+            // attitude is interpolated only when the shape needs it).
+            let o = if s.sphere || dkrrt_collision::bounds::sphere_is_tighter(s.sigma, s.sigma_pos, tr.lever)
+            {
+                Obstacle::from_desc(tr.id, &DebrisShape::default(), tr.radius, &s.p, &ID, s.sigma_pos + base)
             } else {
-                Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &p, &q, sigma + base)
+                let q = if tr.lever > 0.0 || tr.shape.offset != [0.0; 3] { s.q() } else { ID };
+                Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &s.p, &q, s.sigma + base)
             };
             if out.len() < out.capacity() {
                 out.push(o);
@@ -284,16 +287,44 @@ fn finish(t: &mut Track) {
     t.speed = speed;
 }
 
+const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
+
+/// A track's state at a time, with the attitude left to compute ([`State::q`]).
+struct State {
+    p: [f64; 3],
+    sigma: f64,
+    sigma_pos: f64,
+    sphere: bool,
+    qa: [f64; 4],
+    qb: [f64; 4],
+    f: f64,
+}
+
+impl State {
+    /// The attitude (slerp between the bracketing steps, `f` clamped to [0, 1]).
+    fn q(&self) -> [f64; 4] {
+        interpolate_pose(&self.p, &self.qa, &self.p, &self.qb, self.f).1
+    }
+}
+
 fn pose_at(tr: &Track, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
+    let s = state_at(tr, t);
+    (s.p, s.q(), s.sigma, s.sigma_pos, s.sphere)
+}
+
+fn state_at(tr: &Track, t: f64) -> State {
     let ps = &tr.poses;
     let n = ps.len();
     if n == 1 {
         let a = ps[0];
+        let hold =
+            State { p: a.p, sigma: a.sigma, sigma_pos: a.sigma_pos, sphere: false, qa: a.q, qb: a.q, f: 0.0 };
         return match tr.after {
-            After::Hold => (a.p, a.q, a.sigma, a.sigma_pos, false),
+            After::Hold => hold,
             After::Extrapolate => {
                 let dt = (t - a.t).max(0.0);
-                (a.p, a.q, a.sigma + tr.sigma_rate * dt, a.sigma_pos + tr.sigma_rate * dt, dt > 0.0)
+                let g = tr.sigma_rate * dt;
+                State { sigma: a.sigma + g, sigma_pos: a.sigma_pos + g, sphere: dt > 0.0, ..hold }
             }
         };
     }
@@ -301,18 +332,27 @@ fn pose_at(tr: &Track, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
     let k = if t <= ps[0].t { 0 } else { ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2) };
     let (a, b) = (ps[k], ps[k + 1]);
     let f = (t - a.t) / (b.t - a.t);
+    let p = [a.p[0] + f * (b.p[0] - a.p[0]), a.p[1] + f * (b.p[1] - a.p[1]), a.p[2] + f * (b.p[2] - a.p[2])];
     if f <= 1.0 {
-        let (p, q) = interpolate_pose(&a.p, &a.q, &b.p, &b.q, f);
         let lin = |x: f64, y: f64| (x + f * (y - x)).max(x.min(y));
-        return (p, q, lin(a.sigma, b.sigma), lin(a.sigma_pos, b.sigma_pos), false);
+        return State {
+            p,
+            sigma: lin(a.sigma, b.sigma),
+            sigma_pos: lin(a.sigma_pos, b.sigma_pos),
+            sphere: false,
+            qa: a.q,
+            qb: b.q,
+            f,
+        };
     }
     // Past the last pose.
     match tr.after {
-        After::Hold => (b.p, b.q, b.sigma, b.sigma_pos, false),
+        After::Hold => {
+            State { p: b.p, sigma: b.sigma, sigma_pos: b.sigma_pos, sphere: false, qa: b.q, qb: b.q, f: 0.0 }
+        }
         After::Extrapolate => {
-            let (p, q) = interpolate_pose(&a.p, &a.q, &b.p, &b.q, f);
             let g = tr.sigma_rate * (t - b.t);
-            (p, q, b.sigma + g, b.sigma_pos + g, true)
+            State { p, sigma: b.sigma + g, sigma_pos: b.sigma_pos + g, sphere: true, qa: a.q, qb: b.q, f }
         }
     }
 }
