@@ -9,7 +9,8 @@
 //! real time, so lockstep results carry the real-time latency.
 
 use dkrrt_config::arm::contract_limits;
-use dkrrt_config::Scenario;
+use dkrrt_config::{GoalRequest, Scenario};
+use dkrrt_model::ArmModel;
 use dkrrt_msg::{ContractLimits, ControllerMode, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
 use dkrrt_otg::Limits;
 use dkrrt_planner::goto::Goto;
@@ -67,6 +68,19 @@ pub struct PredictorLoop {
     rate_hz: f64,
 }
 
+/// A pose goal is reached with the end effector this close, m.
+pub const EE_TOL_M: f64 = 0.01;
+/// ... and this close in attitude, rad.
+pub const EE_TOL_RAD: f64 = 0.02;
+
+/// Position (m) and attitude (rad) error of the end effector at `q` from the pose `p`, `r`
+/// (w, x, y, z).
+pub fn ee_error(model: &ArmModel, q: &[f64; NJ], p: &[f64; 3], r: &[f64; 4]) -> (f64, f64) {
+    let t = dkrrt_rrt::goal::target(p, r);
+    let x = model.fk(&dkrrt_model::JVec::from_row_slice(q));
+    ((x.translation.vector - t.translation.vector).norm(), x.rotation.angle_to(&t.rotation))
+}
+
 /// The trajectory source.
 pub enum TrajSource {
     /// One jerk-limited line to the goal.
@@ -84,7 +98,11 @@ pub struct Lockstep {
     pub predictor: Option<PredictorLoop>,
     frame: Box<DebrisObservation>,
     pub source: TrajSource,
+    /// The joint goal (a pose goal's IK solution).
     pub goal: [f64; NJ],
+    /// The end-effector pose goal (position m, attitude (w, x, y, z)), if the scenario gave one.
+    pub pose_goal: Option<([f64; 3], [f64; 4])>,
+    model: ArmModel,
     goal_tol: f64,
     pub goal_reached_s: Option<f64>,
     started: bool,
@@ -123,22 +141,47 @@ impl Lockstep {
         };
         let sim = SimCore::new(sc, model.clone())?;
         let tracker = Tracker::new(model.clone(), TrackerConfig::from_scenario(sc));
-        let source = if sc.planner.method == "dk-rrt" {
+        let req = sc.goal.request().ok_or("lockstep: the scenario gives no goal")?;
+        let pose_goal = match req {
+            GoalRequest::Pose(p, q) => Some((p, q)),
+            GoalRequest::Joint(_) => None,
+        };
+        let unreachable = |p: &[f64; 3]| format!("lockstep: the pose goal at {p:?} is out of reach");
+        // A pose goal is solved from the initial configuration, as the sources solve it at
+        // their first state.
+        let (source, goal) = if sc.planner.method == "dk-rrt" {
             // In process, the work per cycle is the iteration budget, never the wall clock.
-            let mut core = Box::new(replanner(sc, model));
+            let mut core = Box::new(replanner(sc, model.clone()));
             core.cfg.enforce_deadline = false;
-            TrajSource::Planner { core, out: Box::new(<Trajectory as Zeroed>::zeroed()) }
+            let goal = match req {
+                GoalRequest::Joint(q) => q,
+                GoalRequest::Pose(p, q) => {
+                    core.resolve_pose_goal(&p, &q, &sc.sim.initial_q, 0.0).ok_or_else(|| unreachable(&p))?
+                }
+            };
+            (TrajSource::Planner { core, out: Box::new(<Trajectory as Zeroed>::zeroed()) }, goal)
         } else {
             let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
             let limits = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
             // The same core as `dkrrt goto`: planned from the initial state, published at the
             // first tick; re-issued when the tracker holds short of the goal.
-            let mut core = Box::new(Goto::new(limits, sc.period_ns() as f64 * 1e-9, sc.goal.q));
+            let period = sc.period_ns() as f64 * 1e-9;
+            let mut core = match req {
+                GoalRequest::Joint(q) => Box::new(Goto::new(limits, period, q)),
+                GoalRequest::Pose(p, q) => {
+                    let mut core = Box::new(Goto::new(limits, period, sc.sim.initial_q));
+                    if !core.set_pose_goal(&model, &p, &q, &sc.sim.initial_q) {
+                        return Err(unreachable(&p));
+                    }
+                    core
+                }
+            };
+            let goal = *core.goal();
             let d = core
                 .step(0, &sc.sim.initial_q, false, &mut traj)
                 .expect("a new source plans at its first step")
                 .map_err(|e| e.to_string())?;
-            TrajSource::Straight { core, traj, duration: d }
+            (TrajSource::Straight { core, traj, duration: d }, goal)
         };
         Ok(Lockstep {
             sim,
@@ -148,7 +191,9 @@ impl Lockstep {
             predictor,
             frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
             source,
-            goal: sc.goal.q,
+            goal,
+            pose_goal,
+            model,
             goal_tol: 0.01,
             goal_reached_s: None,
             started: false,
@@ -216,9 +261,20 @@ impl Lockstep {
             Ok(())
         });
         let q: [f64; NJ] = self.sim.plant.true_state().0.into();
-        if self.goal_reached_s.is_none() && (0..NJ).all(|i| (q[i] - self.goal[i]).abs() <= self.goal_tol) {
+        if self.goal_reached_s.is_none() && self.at_goal(&q) {
             self.goal_reached_s = Some(self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9);
         }
+    }
+
+    /// The goal is reached at `q`: every joint within 0.01 rad of the joint goal, or (a pose
+    /// goal) the end effector within [`EE_TOL_M`] and [`EE_TOL_RAD`] of the pose.
+    pub fn at_goal(&self, q: &[f64; NJ]) -> bool {
+        if (0..NJ).all(|i| (q[i] - self.goal[i]).abs() <= self.goal_tol) {
+            return true;
+        }
+        let Some((p, r)) = &self.pose_goal else { return false };
+        let (dp, da) = ee_error(&self.model, q, p, r);
+        dp <= EE_TOL_M && da <= EE_TOL_RAD
     }
 
     /// A contact happened.

@@ -209,6 +209,10 @@ enum Cmd {
         /// Worker threads (default: the available cores).
         #[arg(long)]
         threads: Option<usize>,
+        /// The episodes' goals: `joint` (the goal configuration) or `pose` (its end-effector
+        /// pose, solved by IK by the sources; reached within 1 cm and 0.02 rad).
+        #[arg(long, default_value = "joint", value_parser = ["joint", "pose"])]
+        goal: String,
     },
 }
 
@@ -316,7 +320,7 @@ fn main() -> ExitCode {
             dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
                 .map(|_| true)
         }
-        Cmd::Study { scenes, episodes, methods, seed, json, threads } => {
+        Cmd::Study { scenes, episodes, methods, seed, json, threads, goal } => {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
             if let Some(p) = &json {
@@ -330,6 +334,7 @@ fn main() -> ExitCode {
                 methods: methods.clone(),
                 seed,
                 threads,
+                pose_goals: goal == "pose",
             };
             let rows_path = json.as_ref().map(|p| p.with_extension("rows.jsonl"));
             let t0 = std::time::Instant::now();
@@ -342,7 +347,7 @@ fn main() -> ExitCode {
                 threads
             );
             if let Some(p) = &json {
-                let doc = serde_json::json!({ "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "rows": rows });
+                let doc = serde_json::json!({ "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal, "rows": rows });
                 std::fs::write(p, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?)
                     .map_err(|e| format!("--json {}: {e}", p.display()))?;
                 println!("rows: {}", p.display());

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use dkrrt_collision::descriptor_of;
 use dkrrt_config::Scenario;
-use dkrrt_msg::ShapeKind;
+use dkrrt_msg::{ShapeKind, NJ};
 use dkrrt_rrt::problem::{solve, Problem, ProblemObstacle, ProblemPose, ProblemShape, Solution};
 
 /// Largest problem file read, bytes.
@@ -78,11 +78,25 @@ pub fn export(sc: &Scenario) -> Result<Problem, String> {
     Ok(Problem {
         urdf: sc.urdf_path().map(|p| p.display().to_string()).unwrap_or_default(),
         start: sc.sim.initial_q,
-        goal: sc.goal.q,
+        goal: joint_goal(sc)?,
         v_max: Some(sc.motion.v_max),
         margin_m: sc.planner.margin_m,
         time_limit_s: 1.0,
         seed: sc.planner.seed,
         obstacles: obstacles.into_iter().map(|o| o.1).collect(),
     })
+}
+
+/// The scenario's joint goal; a pose goal becomes the IK solution nearest to the start (a
+/// planning problem has a joint goal).
+fn joint_goal(sc: &Scenario) -> Result<[f64; NJ], String> {
+    match sc.goal.request().ok_or("the scenario gives no goal")? {
+        dkrrt_config::GoalRequest::Joint(q) => Ok(q),
+        dkrrt_config::GoalRequest::Pose(p, q) => {
+            let model = sc.load_arm().map_err(|e| e.to_string())?;
+            let sols = dkrrt_rrt::goal::ik_solutions(&model, &p, &q, &[sc.sim.initial_q]);
+            dkrrt_rrt::goal::choose(&sols, &sc.sim.initial_q, |_| 1.0)
+                .ok_or_else(|| format!("the pose goal at {p:?} is out of reach"))
+        }
+    }
 }

@@ -62,6 +62,8 @@ pub struct StudyOptions {
     pub methods: Vec<String>,
     pub seed: u64,
     pub threads: usize,
+    /// Episodes' goals as end-effector poses (`[episode] pose_goal`), else joint goals.
+    pub pose_goals: bool,
 }
 
 /// The base scenario of every episode: the embedded default, with the predictor fitted on
@@ -79,9 +81,10 @@ pub fn episode_scenario(
     scene: &str,
     index: u64,
     seed: u64,
+    pose_goal: bool,
 ) -> Result<(Scenario, dkrrt_episodes::Episode), String> {
     let mut sc = base.clone();
-    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed, duration_s: None });
+    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed, duration_s: None, pose_goal });
     let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
     Ok((sc, ep))
 }
@@ -197,7 +200,7 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
                 };
                 let Some((scene, e)) = jobs.get(i) else { break };
                 let t_gen = std::time::Instant::now();
-                let episode = episode_scenario(&base, scene, *e, opts.seed);
+                let episode = episode_scenario(&base, scene, *e, opts.seed, opts.pose_goals);
                 let gen_s = t_gen.elapsed().as_secs_f64();
                 for m in &opts.methods {
                     let mut row = run_episode(&episode, scene, *e, m, &models);

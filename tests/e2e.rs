@@ -386,3 +386,32 @@ fn every_process_has_help() {
         assert!(String::from_utf8_lossy(&out.stdout).contains("--scenario"), "{sub}");
     }
 }
+
+#[test]
+fn the_process_set_solves_and_reaches_a_scenario_pose_goal() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("pose");
+    let dir = std::env::temp_dir().join(format!("dkrrt-pose-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("pose.toml");
+    // The default episode, its goal given as the end-effector pose of its goal configuration.
+    let text = dkrrt_config::DEFAULT_SCENARIO.replace("seed = 4242\n", "seed = 4242\npose_goal = true\n");
+    assert_ne!(text, dkrrt_config::DEFAULT_SCENARIO);
+    std::fs::write(&p, text).unwrap();
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--scenario"])
+        .arg(&p)
+        .arg("--report")
+        .arg(&rp)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("planner: pose goal"), "the planner solved the pose goal: {stderr}");
+    let r = read_report(&rp);
+    assert_eq!(r["ok"], true);
+    assert_eq!(r["debris"]["collision"], false);
+    assert!(r["planner"]["goal_reached_s"].is_number(), "{:#}", r["planner"]);
+    assert!(num(&r, "/final_error_rad") < 0.01, "{}", r["final_error_rad"]);
+}

@@ -66,3 +66,32 @@ fn the_straight_source_reissues_its_goal_after_a_safe_hold() {
     assert!(r.safe_hold_entries >= 1);
     assert!(ls.goal_reached_s.is_some(), "{:?}", r.final_q);
 }
+
+#[test]
+fn a_pose_goal_is_solved_and_reached_by_both_sources() {
+    // The default threat episode with its goal given as the end-effector pose of its goal
+    // configuration: each source solves it by IK from the start and the run ends with the end
+    // effector on the pose (the dk-rrt planner around the debris, goto straight on).
+    let model = dkrrt_model::ArmModel::default_arm();
+    for method in ["dk-rrt", "straight"] {
+        let mut sc = Scenario::default_scenario();
+        sc.episode.as_mut().unwrap().pose_goal = true;
+        sc.planner.method = method.into();
+        dkrrt_episodes::resolve(&mut sc).unwrap();
+        assert!(sc.goal.q.is_none());
+        let Some(dkrrt_config::GoalRequest::Pose(p, r)) = sc.goal.request() else { panic!("a pose goal") };
+        let rep = dkrrt::lockstep::run(&sc).unwrap();
+        let (dp, da) = dkrrt::lockstep::ee_error(&model, &rep.final_q, &p, &r);
+        assert!(dp < 0.01 && da < 0.02, "{method}: end effector {dp} m, {da} rad off the pose");
+        assert!(rep.goal_reached_s.is_some(), "{method}");
+        if method == "dk-rrt" {
+            assert!(!rep.debris.unwrap().collided(), "the planner avoids the debris");
+        }
+    }
+    // An unreachable pose is refused before anything moves.
+    let mut sc = Scenario::default_scenario();
+    dkrrt_episodes::resolve(&mut sc).unwrap();
+    sc.goal = dkrrt_config::GoalCfg { q: None, pose: Some([5.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]) };
+    let e = dkrrt::lockstep::run(&sc).err().expect("out of reach");
+    assert!(e.contains("out of reach"), "{e}");
+}

@@ -7,15 +7,10 @@ use std::time::{Duration, Instant};
 
 use dkrrt_config::Scenario;
 use dkrrt_msg::bus::{Bus, Sub};
-use dkrrt_msg::{ContractLimits, Goal, GoalKind, Source, Validate, Zeroed, NJ};
+use dkrrt_msg::{ContractLimits, Goal, GoalKind, Source, Validate, Zeroed};
 
-/// What to ask for.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GoalRequest {
-    Joint([f64; NJ]),
-    /// Position (m) and attitude (w, x, y, z) of the end effector in the base frame.
-    Pose([f64; 3], [f64; 4]),
-}
+/// What to ask for (the scenario's `[goal]` is one too).
+pub use dkrrt_config::GoalRequest;
 
 /// Reads every valid goal waiting on `sub` (invalid ones are counted by `sub`); the newest
 /// wins. What the trajectory sources (goto, planner) do with `dkrrt/goal` each cycle.
@@ -35,6 +30,12 @@ pub fn take_goal(sub: &mut Sub<Goal>, lim: &ContractLimits) -> Result<Option<Goa
 pub fn goal_message(sc: &Scenario, req: GoalRequest, goal_id: u64) -> Result<Goal, String> {
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = dkrrt_config::arm::contract_limits(&model);
+    check_goal(&lim, req, goal_id)
+}
+
+/// The message for `req`, checked against the contract limits `lim` (the error names the
+/// field).
+pub fn check_goal(lim: &ContractLimits, req: GoalRequest, goal_id: u64) -> Result<Goal, String> {
     let mut g = <Goal as Zeroed>::zeroed();
     g.goal_id = goal_id;
     match req {
@@ -48,7 +49,7 @@ pub fn goal_message(sc: &Scenario, req: GoalRequest, goal_id: u64) -> Result<Goa
             g.pose_q = q;
         }
     }
-    g.validate(&lim).map_err(|e| format!("goal rejected: {e}"))?;
+    g.validate(lim).map_err(|e| format!("goal rejected: {e}"))?;
     Ok(g)
 }
 

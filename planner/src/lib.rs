@@ -17,20 +17,21 @@ pub mod process;
 pub mod record_process;
 pub mod replan;
 
-/// The arm model of `sc`, its contract limits, and the goal (`goal`, else the scenario's),
-/// checked against them: what a trajectory source (`dkrrt goto`, `dkrrt planner`) starts from.
-/// Errors name `who`.
+/// The arm model of `sc`, its contract limits, and the goal (`goal`, a joint goal, else the
+/// scenario's joint or end-effector pose goal), checked against them the way a `dkrrt/goal`
+/// message is: what a trajectory source (`dkrrt goto`, `dkrrt planner`) starts from. Errors
+/// name `who`.
 pub fn source_setup(
     sc: &dkrrt_config::Scenario,
     goal: Option<[f64; dkrrt_msg::NJ]>,
     who: &str,
-) -> Result<(dkrrt_model::ArmModel, dkrrt_msg::ContractLimits, [f64; dkrrt_msg::NJ]), String> {
-    use dkrrt_msg::{Validate, Zeroed};
+) -> Result<(dkrrt_model::ArmModel, dkrrt_msg::ContractLimits, goal_cli::GoalRequest), String> {
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = dkrrt_config::arm::contract_limits(&model);
-    let goal = goal.unwrap_or(sc.goal.q);
-    let mut g = <dkrrt_msg::Goal as Zeroed>::zeroed();
-    g.q = goal;
-    g.validate(&lim).map_err(|e| format!("{who}: goal rejected: {e}"))?;
-    Ok((model, lim, goal))
+    let req = match goal {
+        Some(q) => goal_cli::GoalRequest::Joint(q),
+        None => sc.goal.request().ok_or_else(|| format!("{who}: the scenario gives no goal"))?,
+    };
+    goal_cli::check_goal(&lim, req, 0).map_err(|e| format!("{who}: {e}"))?;
+    Ok((model, lim, req))
 }

@@ -45,7 +45,12 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<PlannerReport, String> {
     signals::install();
-    let (model, lim, mut goal) = crate::source_setup(sc, goal, "planner")?;
+    let (model, lim, req) = crate::source_setup(sc, goal, "planner")?;
+    // The goal in force (a joint goal); a pose goal waits for the first state to be solved.
+    let (mut goal, mut pending_pose) = match req {
+        GoalRequest::Joint(q) => (Some(q), None),
+        GoalRequest::Pose(p, q) => (None, Some((p, q))),
+    };
     let mut core = replanner(sc, model);
     let mut pose_goals_unreachable = 0u64;
     let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
@@ -79,21 +84,22 @@ pub fn run(
             have_state = true;
         }
         cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        let pose_goal = match take_goal(&mut goal_sub, &lim)? {
+        match take_goal(&mut goal_sub, &lim)? {
             Some(GoalRequest::Joint(q)) => {
-                goal = q;
-                None
+                goal = Some(q);
+                pending_pose = None;
             }
-            Some(GoalRequest::Pose(p, q)) => Some((p, q)),
-            None => None,
-        };
-        if let Some((p, q)) = pose_goal {
+            Some(GoalRequest::Pose(p, q)) => pending_pose = Some((p, q)),
+            None => {}
+        }
+        if let Some((p, q)) = pending_pose.filter(|_| have_state) {
             // Solved against the newest forecast, from where the arm is.
+            pending_pose = None;
             let t_now = state.header.stamp_ns as f64 * 1e-9;
             match core.resolve_pose_goal(&p, &q, &state.q, t_now) {
                 Some(g) => {
                     eprintln!("planner: pose goal {p:?} {q:?} -> joint goal {g:?}");
-                    goal = g;
+                    goal = Some(g);
                 }
                 None => {
                     pose_goals_unreachable += 1;
@@ -104,7 +110,7 @@ pub fn run(
         let end = have_state && state.header.flags & FLAG_END_OF_RUN != 0;
         // Realtime: every wake is a cycle; lockstep: the core's plant-clock cadence.
         let due = have_state && !end && (!lockstep || core.cycle_due(state.header.stamp_ns));
-        if due {
+        if let (true, Some(goal)) = (due, goal) {
             let new_fc = fc_sub.latest(&mut fc, &lim).map_err(|e| e.to_string())?;
             forecasts += new_fc as u64;
             let view = TrackerView {

@@ -41,7 +41,13 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<GotoReport, String> {
     signals::install();
-    let (model, lim, goal) = crate::source_setup(sc, goal, "goto")?;
+    let (model, lim, req) = crate::source_setup(sc, goal, "goto")?;
+    // A pose goal is solved from the first state; nothing is planned before.
+    let (first_goal, mut pending_pose) = match req {
+        GoalRequest::Joint(q) => (Some(q), None),
+        GoalRequest::Pose(p, q) => (None, Some((p, q))),
+    };
+    let mut goal_known = first_goal.is_some();
     let bus = Bus::new(run, "goto").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
@@ -57,7 +63,7 @@ pub fn run(
     let mut state = <RobotState as Zeroed>::zeroed();
     let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut have_state = false;
-    let mut core = Goto::new(limits, period_s, goal);
+    let mut core = Goto::new(limits, period_s, first_goal.unwrap_or([0.0; NJ]));
     let mut rep = GotoReport {
         trajectories: 0,
         last_duration_s: 0.0,
@@ -72,16 +78,20 @@ pub fn run(
         if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
-        let pose_goal = match take_goal(&mut goal_sub, &lim)? {
+        match take_goal(&mut goal_sub, &lim)? {
             Some(GoalRequest::Joint(q)) => {
                 core.set_goal(q);
-                None
+                goal_known = true;
+                pending_pose = None;
             }
-            Some(GoalRequest::Pose(p, q)) => Some((p, q)),
-            None => None,
-        };
-        if let Some((p, q)) = pose_goal {
-            if !core.set_pose_goal(&model, &p, &q, &state.q) {
+            Some(GoalRequest::Pose(p, q)) => pending_pose = Some((p, q)),
+            None => {}
+        }
+        if let Some((p, q)) = pending_pose.filter(|_| have_state) {
+            pending_pose = None;
+            if core.set_pose_goal(&model, &p, &q, &state.q) {
+                goal_known = true;
+            } else {
                 rep.pose_goals_unreachable += 1;
                 eprintln!("goto: pose goal {p:?} {q:?} is out of reach; keeping the goal in force");
             }
@@ -92,7 +102,7 @@ pub fn run(
         let fresh = have_state && state.header.seq > last_seq;
         last_seq = state.header.seq;
         let have_cmd = cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        if have_state {
+        if have_state && goal_known {
             // The tracker holds: its newest command is a hold for a recent state.
             let holding = fresh
                 && have_cmd
@@ -116,9 +126,9 @@ pub fn run(
                 None => {}
             }
             rep.replans_after_hold = core.reissues;
-            if state.header.flags & FLAG_END_OF_RUN != 0 {
-                break;
-            }
+        }
+        if have_state && state.header.flags & FLAG_END_OF_RUN != 0 {
+            break;
         }
         // Late subscribers (a restarted tracker) get the trajectory from history.
         traj_pub.update_connections().map_err(|e| e.to_string())?;

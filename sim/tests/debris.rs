@@ -137,7 +137,7 @@ fn tick_check_and_drain_allocate_nothing() {
     let model = ArmModel::default_arm();
     let mut sc = Scenario::default_scenario();
     sc.debris.scene = "dense".into();
-    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    let mut side = DebrisSide::new(&sc, &model).unwrap();
     let mut frame = <DebrisObservation as Zeroed>::zeroed();
     let q = q0(&sc);
     side.step(1e-3); // first-use paths

@@ -27,7 +27,7 @@ fn setup(predict: bool) -> Loop {
     let mut traj = Box::new(<Trajectory as Zeroed>::zeroed());
     dkrrt_planner::goto::plan(
         &KinState::rest(sc.sim.initial_q),
-        &sc.goal.q,
+        &sc.goal.q.expect("a joint goal"),
         &cfg.limits,
         1e-3,
         1,

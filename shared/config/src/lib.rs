@@ -132,6 +132,11 @@ pub struct EpisodeCfg {
     /// Run duration, s (default: the episode's time limit, 3 × the straight motion + 10 s).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub duration_s: Option<f64>,
+    /// `true`: the episode's goal is given as the end-effector pose of its goal configuration
+    /// (`goal.pose`; the sources solve it by IK, the run reaches it with the end effector
+    /// within 1 cm and 0.02 rad), else as the joint goal.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub pose_goal: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -191,7 +196,41 @@ pub struct SimCfg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GoalCfg {
-    pub q: [f64; NJ],
+    /// Joint goal, rad (exactly one of `q` and `pose`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub q: Option<[f64; NJ]>,
+    /// End-effector pose goal in the arm's base frame: `[x, y, z, qw, qx, qy, qz]` (m; a unit
+    /// quaternion, normalised on use). The sources turn it into a joint goal by IK from where
+    /// the arm is when they start (the planner: the solution clear of the forecast nearest to
+    /// the arm); a run reaches it when the end effector is within 1 cm and 0.02 rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 7]>,
+}
+
+/// What a goal asks for (the scenario's `[goal]`, a `dkrrt/goal` message).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GoalRequest {
+    Joint([f64; NJ]),
+    /// Position (m) and attitude (w, x, y, z) of the end effector in the base frame.
+    Pose([f64; 3], [f64; 4]),
+}
+
+impl GoalCfg {
+    /// A joint goal.
+    pub fn joint(q: [f64; NJ]) -> Self {
+        GoalCfg { q: Some(q), pose: None }
+    }
+
+    /// The goal asked for (`q` if given, else `pose` with its quaternion normalised); `None`
+    /// when neither is given ([`Scenario::validate`] refuses that).
+    pub fn request(&self) -> Option<GoalRequest> {
+        if let Some(q) = self.q {
+            return Some(GoalRequest::Joint(q));
+        }
+        let v = self.pose?;
+        let n = (v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]).sqrt();
+        Some(GoalRequest::Pose([v[0], v[1], v[2]], [v[3] / n, v[4] / n, v[5] / n, v[6] / n]))
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -443,7 +482,38 @@ impl Scenario {
             return Err(c.fail("sim.fifo_priority", self.sim.fifo_priority, "must be 0..=99"));
         }
         c.within("sim.initial_q", &self.sim.initial_q, &arm.q_min, &arm.q_max)?;
-        c.within("goal.q", &self.goal.q, &arm.q_min, &arm.q_max)?;
+        match (&self.goal.q, &self.goal.pose) {
+            (Some(q), None) => c.within("goal.q", q, &arm.q_min, &arm.q_max)?,
+            (None, Some(v)) => {
+                for (i, x) in v.iter().enumerate() {
+                    if !x.is_finite() {
+                        return Err(c.fail(format!("goal.pose[{i}]"), x, "must be finite"));
+                    }
+                }
+                let n = (v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]).sqrt();
+                if (n - 1.0).abs() > 1e-3 {
+                    return Err(c.fail(
+                        "goal.pose[3..7]",
+                        n,
+                        "the attitude (qw, qx, qy, qz) must be a unit quaternion (norm 1 ± 1e-3)",
+                    ));
+                }
+                let r = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                if r > 100.0 {
+                    return Err(c.fail("goal.pose[0..3]", r, "must lie within 100 m of the base"));
+                }
+            }
+            (Some(_), Some(_)) => {
+                return Err(c.fail("goal", "q and pose", "give one of goal.q and goal.pose, not both"))
+            }
+            (None, None) => {
+                return Err(c.fail(
+                    "goal",
+                    "nothing",
+                    "give goal.q (joints, rad) or goal.pose ([x, y, z, qw, qx, qy, qz])",
+                ))
+            }
+        }
         if self.sim.substeps == 0 || self.sim.substeps > 100 {
             return Err(c.fail("sim.substeps", self.sim.substeps, "must be 1..=100"));
         }
@@ -577,6 +647,27 @@ mod tests {
         let text = DEFAULT_SCENARIO.replace("q = [0.35,", "q = [7.0,");
         let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
         assert!(e.contains("goal.q[0]") && e.contains("joint limits"), "{e}");
+
+        // Pose goals: one of q and pose; a unit quaternion; finite numbers.
+        let goal_q = "q = [0.35, -0.2, 0.7, 0.3, 0.2, 0.4]";
+        assert!(DEFAULT_SCENARIO.contains(goal_q));
+        let pose = DEFAULT_SCENARIO.replace(goal_q, "pose = [0.5, 0.1, 0.6, 0.0, 1.0, 0.0, 0.0]");
+        let s = Scenario::from_toml_str(&pose, "x").unwrap();
+        s.validate(&arm()).unwrap();
+        assert_eq!(s.goal.request(), Some(GoalRequest::Pose([0.5, 0.1, 0.6], [0.0, 1.0, 0.0, 0.0])));
+        let both = DEFAULT_SCENARIO
+            .replace(goal_q, &format!("{goal_q}\npose = [0.5, 0.1, 0.6, 1.0, 0.0, 0.0, 0.0]"));
+        let e = Scenario::from_toml_str(&both, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("goal") && e.contains("not both"), "{e}");
+        let none = DEFAULT_SCENARIO.replace(goal_q, "");
+        let e = Scenario::from_toml_str(&none, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("goal.pose"), "{e}");
+        let skew = DEFAULT_SCENARIO.replace(goal_q, "pose = [0.5, 0.1, 0.6, 0.9, 0.0, 0.0, 0.0]");
+        let e = Scenario::from_toml_str(&skew, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("goal.pose[3..7]") && e.contains("unit quaternion"), "{e}");
+        let nan = DEFAULT_SCENARIO.replace(goal_q, "pose = [0.5, nan, 0.6, 1.0, 0.0, 0.0, 0.0]");
+        let e = Scenario::from_toml_str(&nan, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("goal.pose[1]"), "{e}");
 
         let text = DEFAULT_SCENARIO.replace("v_max = [0.10,", "v_max = [1.6,");
         let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();

@@ -24,7 +24,7 @@
 //! (scene, index, seed): every process regenerates the same episode.
 
 use dkrrt_collision::{proximity, ArmPoser, Obstacle, PosedCapsule};
-use dkrrt_config::{EpisodeCfg, Scenario};
+use dkrrt_config::{EpisodeCfg, GoalCfg, Scenario};
 use dkrrt_debris::{DebrisWorld, Scene, ShapeSpec, SCENE_NAMES};
 use dkrrt_model::NJ;
 use dkrrt_otg::{KinState, Limits, Options};
@@ -401,7 +401,15 @@ pub fn resolve(sc: &mut Scenario) -> Result<Option<Episode>, String> {
     let Some(cfg) = sc.episode.clone() else { return Ok(None) };
     let ep = generate(&cfg, sc)?;
     sc.sim.initial_q = ep.start;
-    sc.goal.q = ep.goal;
+    sc.goal = if cfg.pose_goal {
+        // The end-effector pose of the goal configuration.
+        let model = sc.load_arm().map_err(|e| e.to_string())?;
+        let x = model.fk(&dkrrt_model::JVec::from_row_slice(&ep.goal));
+        let (t, r) = (x.translation.vector, x.rotation.quaternion());
+        GoalCfg { q: None, pose: Some([t.x, t.y, t.z, r.w, r.i, r.j, r.k]) }
+    } else {
+        GoalCfg::joint(ep.goal)
+    };
     sc.debris.scene = cfg.scene.clone();
     sc.scene_override = Some(ep.scene.clone());
     sc.episode_time_limit_s = Some(ep.time_limit_s);
