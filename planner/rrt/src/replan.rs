@@ -49,6 +49,10 @@ pub struct ReplanConfig {
     pub enforce_deadline: bool,
     /// At rest at the end of the active plan, react to predicted conflicts this close only, s.
     pub rest_react_s: f64,
+    /// While moving on a plan to the goal whose conflict lies beyond `move_react_s`, do not
+    /// trade it for a clean plan that arrives later (long-horizon bounds are wide; replacing
+    /// it every cycle by one just past the look-ahead makes the arrival recede).
+    pub keep_earlier_arrival: bool,
 }
 
 impl Default for ReplanConfig {
@@ -64,6 +68,7 @@ impl Default for ReplanConfig {
             goal_tol_rad: 0.01,
             enforce_deadline: true,
             rest_react_s: 3.0,
+            keep_earlier_arrival: true,
         }
     }
 }
@@ -458,7 +463,19 @@ impl Replanner {
             let look = self.planner.cfg.lookahead_s;
             let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_c, t_c + look);
             let better = !cur_clean || !reaches_goal || goal_changed || p.reach == Reach::Goal;
-            if ok && better && !(cur_valid && p.reach == Reach::Escape) {
+            // A moving plan to the goal whose only conflict is beyond the reaction time is not
+            // traded for one that arrives later: long-horizon bounds are wide, and a clean
+            // replacement found every cycle just past the look-ahead makes the arrival recede
+            // cycle after cycle. The kept plan is re-checked every cycle; a conflict that is
+            // still there within the reaction time makes it invalid and it is left then.
+            let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
+            let recedes = self.cfg.keep_earlier_arrival
+                && cur_valid
+                && !cur_done
+                && reaches_goal
+                && !goal_changed
+                && p.arrival > cur_arrival + 1e-3;
+            if ok && better && !recedes && !(cur_valid && p.reach == Reach::Escape) {
                 self.accept(out, p.reach);
                 st.fallback = if p.reach == Reach::Escape {
                     self.stats.fallbacks.escape += 1;

@@ -244,3 +244,58 @@ fn a_pose_goal_becomes_the_clear_ik_solution_nearest_the_arm() {
     assert!((f.translation.vector - t.translation.vector).norm() < 1e-4);
     assert!(rp.resolve_pose_goal(&[10.0, 0.0, 0.0], &q, &START, 0.0).is_none());
 }
+
+#[test]
+fn a_far_conflict_is_not_traded_for_a_later_arrival() {
+    // A small fast object crosses the end effector's path 3.3 s from now (beyond the 3 s
+    // reaction time) and is gone 0.3 s later. A clean plan exists (wait, then go) but arrives
+    // later: with `keep_earlier_arrival` the moving plan is kept; without, it is replaced.
+    let run = |keep: bool| {
+        let rc = ReplanConfig {
+            forecast_wait_s: 0.0,
+            iterations: 300,
+            keep_earlier_arrival: keep,
+            ..ReplanConfig::default()
+        };
+        let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
+        let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+        let mut clk = clock();
+        let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+        assert!(
+            rp.step(0, &START, idle, Some(&forecast(0, [50.0, 0.0, 0.0], 0.05)), &GOAL, &mut clk, &mut out)
+                .publish
+        );
+        let first = *out;
+        let arrival = first.start_ns as f64 * 1e-9 + first.duration_s;
+        let now = 300_000_000u64;
+        let t_x = 3.6;
+        assert!(arrival > t_x + 0.5, "the plan is still moving at the crossing ({arrival} s)");
+        // The end effector's point at the crossing time, and a path through it that keeps
+        // away from the base (horizontal, perpendicular to the radial direction).
+        let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+        let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+        poser.pose(&first.sample(first.time_of((t_x * 1e9) as u64)).p, &mut caps);
+        let e = caps[NJ - 1].b;
+        let h = (e[0] * e[0] + e[1] * e[1]).sqrt();
+        let u = [-e[1] / h, e[0] / h, 0.0];
+        let mut f = forecast(now, e, 0.05);
+        for k in 0..40 {
+            let t = 0.3 + 0.1 * (k + 1) as f64 - t_x;
+            f.tracks[0].steps[k].p = [e[0] + 2.0 * u[0] * t, e[1] + 2.0 * u[1] * t, e[2]];
+        }
+        let track = TrackerView { mode: ControllerMode::Track, traj_id: first.traj_id };
+        let q_now = first.sample(first.time_of(now)).p;
+        let d = rp.step(now, &q_now, track, Some(&f), &GOAL, &mut clk, &mut out);
+        let new_arrival = rp.current().start_ns as f64 * 1e-9 + rp.current().duration_s;
+        (d, first.traj_id, rp.current().traj_id, arrival, new_arrival)
+    };
+    // Without the rule: the conflict is seen, and a clean plan that arrives later replaces it.
+    let (d, first, cur, arrival, new_arrival) = run(false);
+    assert!(d.publish && cur != first, "{:?}", d.status);
+    assert!(new_arrival > arrival, "{new_arrival} vs {arrival}");
+    // With it: the moving plan is kept (its conflict is reported), nothing is published.
+    let (d, first, cur, _, _) = run(true);
+    assert!(!d.publish && cur == first, "{:?}", d.status);
+    assert_eq!(d.status.fallback, Fallback::Keep as u32, "{:?}", d.status);
+    assert!(d.status.min_predicted_clearance_m < 0.0, "{:?}", d.status);
+}

@@ -10,7 +10,8 @@ use dkrrt_otg::Limits;
 
 fn ep(scene: &str, index: u64) -> Episode {
     let sc = Scenario::default_scenario();
-    generate(&EpisodeCfg { scene: scene.into(), index, seed: 77, duration_s: None, pose_goal: false }, &sc).unwrap()
+    generate(&EpisodeCfg { scene: scene.into(), index, seed: 77, duration_s: None, pose_goal: false }, &sc)
+        .unwrap()
 }
 
 /// The smallest distance between the debris and the arm posed by `q_of(t)`, every 10 ms to
@@ -106,13 +107,20 @@ fn the_straight_motion_is_hit_in_most_episodes() {
 #[test]
 fn resolving_puts_the_episode_into_the_scenario() {
     let mut sc = Scenario::default_scenario();
-    sc.episode = Some(EpisodeCfg { scene: "dense".into(), index: 1, seed: 5, duration_s: Some(12.0), pose_goal: false });
+    sc.episode = Some(EpisodeCfg {
+        scene: "dense".into(),
+        index: 1,
+        seed: 5,
+        duration_s: Some(12.0),
+        pose_goal: false,
+    });
     let e = resolve(&mut sc).unwrap().unwrap();
     assert_eq!(sc.sim.initial_q, e.start);
     assert_eq!(sc.goal.q, Some(e.goal));
     assert_eq!(sc.run.duration_s, 12.0);
     assert_eq!(sc.load_debris_scene().unwrap(), e.scene);
     let mut bad = Scenario::default_scenario();
-    bad.episode = Some(EpisodeCfg { scene: "nowhere".into(), index: 0, seed: 1, duration_s: None, pose_goal: false });
+    bad.episode =
+        Some(EpisodeCfg { scene: "nowhere".into(), index: 0, seed: 1, duration_s: None, pose_goal: false });
     assert!(resolve(&mut bad).unwrap_err().contains("episode.scene"));
 }
