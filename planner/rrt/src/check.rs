@@ -95,16 +95,6 @@ impl Checker {
         self.delta
     }
 
-    /// The sample spacing for a motion (`moving`) or a rest, s.
-    pub fn spacing(&self, world: &WorldInTime, moving: bool) -> f64 {
-        let v = world.max_speed() + if moving { self.arm_speed } else { 0.0 };
-        if v <= 1e-9 {
-            0.5
-        } else {
-            (self.delta / v).min(0.5)
-        }
-    }
-
     fn in_limits(&self, q: &[f64; NJ]) -> bool {
         (0..NJ).all(|i| q[i].is_finite() && q[i] >= self.q_min[i] - 1e-9 && q[i] <= self.q_max[i] + 1e-9)
     }
@@ -119,12 +109,25 @@ impl Checker {
         extra: f64,
         stop_below: f64,
     ) -> f64 {
+        self.clearance_masked(world, q, t, extra, stop_below, u64::MAX)
+    }
+
+    /// [`Checker::clearance_at`] against the tracks in `mask` only ([`WorldInTime::near`]).
+    fn clearance_masked(
+        &mut self,
+        world: &WorldInTime,
+        q: &[f64; NJ],
+        t: f64,
+        extra: f64,
+        stop_below: f64,
+        mask: u64,
+    ) -> f64 {
         self.configs_checked += 1;
         if !self.in_limits(q) {
             return -1.0;
         }
         self.poser.pose(q, &mut self.caps);
-        world.obstacles_at(t, extra, &mut self.obs);
+        world.obstacles_at_masked(t, extra, mask, &mut self.obs);
         clearance(&self.caps, &self.obs, stop_below, self.cap)
     }
 
@@ -169,14 +172,7 @@ impl Checker {
         loop {
             let c = if moving || out.samples == 0 {
                 let q = at(t);
-                self.configs_checked += 1;
-                if !self.in_limits(&q) {
-                    -1.0
-                } else {
-                    self.poser.pose(&q, &mut self.caps);
-                    world.obstacles_at_masked(t, half, mask, &mut self.obs);
-                    clearance(&self.caps, &self.obs, 0.0, self.cap)
-                }
+                self.clearance_masked(world, &q, t, half, 0.0, mask)
             } else {
                 // At rest the arm's pose is already computed.
                 self.configs_checked += 1;
