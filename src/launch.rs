@@ -137,9 +137,15 @@ fn pick(v: &Value, keys: &[&str]) -> Value {
 }
 
 /// Runs the process set; returns the report and whether the run was clean.
+/// Why the process set refuses `oracle-rrt`.
+pub const ORACLE_IN_PROCESS: &str = "planner.method = \"oracle-rrt\" plans on the true future of the debris, which only the in-process lockstep has: run it with `dkrrt eval` or `dkrrt study`, not as processes";
+
 pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     signals::install();
     let sc = opts.scenario;
+    if sc.forecasts() == dkrrt_config::Forecasts::Oracle {
+        return Err(ORACLE_IN_PROCESS.into());
+    }
     let t_start = mono_ns();
     let run = opts.run.unwrap_or_else(|| format!("{}-{}", std::process::id(), t_start % 1_000_000_000));
     let cfg = run_config(&run).map_err(|e| e.to_string())?;
@@ -176,7 +182,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let lim = dkrrt_msg::ContractLimits::symmetric(0.0, 0.0, 0.0);
 
     let mut procs: Vec<Proc> = Vec::new();
-    let planner = sc.planner.method == "dk-rrt";
+    let planner = sc.replans();
     let source: &'static str = if planner { "planner" } else { "goto" };
     let mut names: Vec<&'static str> = vec!["sim"];
     if sc.has_debris() {
@@ -358,7 +364,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         }) } else { Value::Null },
         "predictor": if sc.has_debris() { json!({
             // The scenario's method, also when the process left no statistics.
-            "method": pred.get("method").cloned().unwrap_or_else(|| json!(sc.predictor.method)),
+            "method": pred.get("method").cloned().unwrap_or_else(|| json!(sc.predictor_method())),
             "forecasts": pred.get("forecasts"),
             "forecast_rate_hz": pred.get("forecast_rate_hz"),
             "forecast_compute_us": pick(pred.get("forecast_compute_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),

@@ -6,8 +6,10 @@
 //! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`, `dkrrt predictor`), plus
 //! `dkrrt train` / `dkrrt predict-eval` ([`train`]).
 
+pub mod figures;
 pub mod launch;
 pub mod lockstep;
 pub mod plan_cli;
 pub mod study;
+pub mod study_report;
 pub mod train;

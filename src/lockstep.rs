@@ -3,13 +3,17 @@
 //! the same scenario gives the same numbers.
 //!
 //! The trajectory source is the scenario's `planner.method`: `straight` (the goto core: one
-//! jerk-limited line to the goal, planned from the first state) or `dk-rrt` (the replanning
-//! core, one cycle every `1/planner.rate_hz` of plant time with `planner.iterations` of work).
+//! jerk-limited line to the goal, planned from the first state) or one of the replanning
+//! methods (the replanning core, one cycle every `1/planner.rate_hz` of plant time with
+//! `planner.iterations` of work) on the forecasts the method names
+//! ([`dkrrt_config::Forecasts`]): the predictor's (`cv-rrt`, `edmd-rrt`, `dk-rrt`), the
+//! latest estimates held still (`rrt-static`), or the true future (`oracle-rrt`, from a
+//! [`TruthTable`] recorded at start-up, on the predictor's schedule).
 //! A plan computed from the state at plant time `t` starts at `t + planner.commit_ms`, as in
 //! real time, so lockstep results carry the real-time latency.
 
 use dkrrt_config::arm::contract_limits;
-use dkrrt_config::{GoalRequest, Scenario};
+use dkrrt_config::{Forecasts, GoalRequest, Scenario};
 use dkrrt_model::ArmModel;
 use dkrrt_msg::{ContractLimits, ControllerMode, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
 use dkrrt_otg::Limits;
@@ -20,6 +24,7 @@ use dkrrt_predictor::{GateStats, Models};
 use dkrrt_rrt::{Replanner, Summary, TrackerView};
 use dkrrt_sim::core::SimCore;
 use dkrrt_sim::debris::DebrisStats;
+use dkrrt_sim::oracle::TruthTable;
 use dkrrt_sim::plant::PlantStats;
 use dkrrt_tracker::ctrl::{ModeEvent, Tracker, TrackerConfig};
 
@@ -44,6 +49,48 @@ pub struct EvalReport {
     pub predictor: Option<PredictorFigures>,
     /// Planner figures, `null` for the straight method.
     pub planner: Option<Summary>,
+    /// Path figures of the real motion.
+    pub motion: MotionFigures,
+}
+
+/// Ticks between end-effector samples (path error, traces): 10 ms at 1 kHz.
+pub const SAMPLE_TICKS: u64 = 10;
+
+/// Path figures of a run: the end effector's desired (the tracker's reference) vs real path,
+/// sampled every [`SAMPLE_TICKS`] ticks (the paper's Fig. 2 error), and the joint-space path
+/// length of the real motion (every tick).
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct MotionFigures {
+    /// RMS and max distance between the desired and the real end-effector position, m.
+    pub ee_path_error_m_rms: f64,
+    pub ee_path_error_m_max: f64,
+    /// Σ ‖q_{k+1} − q_k‖ over the run, rad.
+    pub path_length_rad: f64,
+    #[serde(skip)]
+    ee_sum_sq: f64,
+    #[serde(skip)]
+    ee_n: u64,
+}
+
+/// One sample of a run's trace (every [`SAMPLE_TICKS`] ticks; for the figures).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct TraceSample {
+    pub t_s: f64,
+    /// True joint positions and velocities.
+    pub q: [f64; NJ],
+    pub qd: [f64; NJ],
+    /// The tracker's reference: positions, velocities, accelerations (none while idle).
+    pub q_des: Option<[f64; NJ]>,
+    pub qd_des: Option<[f64; NJ]>,
+    pub qdd_des: Option<[f64; NJ]>,
+    /// Real and desired end-effector positions, m (base frame).
+    pub ee: [f64; 3],
+    pub ee_des: Option<[f64; 3]>,
+    /// True smallest arm–debris separation, m.
+    pub true_distance_m: Option<f64>,
+    /// The planner's predicted clearance of the real configuration (forecast bound and margin
+    /// included), m.
+    pub predicted_clearance_m: Option<f64>,
 }
 
 /// What the in-process predictor did.
@@ -67,6 +114,21 @@ pub struct PredictorLoop {
     lim: ContractLimits,
     rate_hz: f64,
 }
+
+/// The true future, published on the predictor's plant-clock schedule (`oracle-rrt`).
+pub struct OracleLoop {
+    pub table: TruthTable,
+    pub forecast: Box<DebrisForecast>,
+    pub forecasts: u64,
+    pub fresh: bool,
+    rate_hz: f64,
+    steps: usize,
+    dt_s: f64,
+    next_due_s: f64,
+}
+
+/// Seconds between the oracle's kept true poses (interpolated between).
+pub const ORACLE_SAMPLE_S: f64 = 0.01;
 
 /// A pose goal is reached with the end effector this close, m.
 pub const EE_TOL_M: f64 = 0.01;
@@ -96,6 +158,7 @@ pub struct Lockstep {
     pub period_ns: u64,
     pub events: Vec<ModeEvent>,
     pub predictor: Option<PredictorLoop>,
+    pub oracle: Option<OracleLoop>,
     frame: Box<DebrisObservation>,
     pub source: TrajSource,
     /// The joint goal (a pose goal's IK solution).
@@ -107,6 +170,13 @@ pub struct Lockstep {
     pub goal_reached_s: Option<f64>,
     started: bool,
     clock: fn() -> u64,
+    motion: MotionFigures,
+    prev_q: Option<[f64; NJ]>,
+    /// The run's trace, if asked for ([`Lockstep::keep_trace`]).
+    pub trace: Option<Vec<TraceSample>>,
+    /// With the trace: every debris object's true position (base frame) per sample,
+    /// `(t_s, id, p)`.
+    pub debris_trace: Vec<(f64, u32, [f64; 3])>,
 }
 
 fn mono_ns() -> u64 {
@@ -117,14 +187,20 @@ impl Lockstep {
     /// Builds the cores for `sc` (an `[episode]` must already be resolved). The predictor's
     /// models are fitted as the scenario says (`predictor.fit`).
     pub fn new(sc: &Scenario) -> Result<Lockstep, String> {
-        let models = if sc.has_debris() { Some(fit_models(sc)?) } else { None };
+        let models =
+            if sc.has_debris() && sc.forecasts() != Forecasts::Oracle { Some(fit_models(sc)?) } else { None };
         Self::with_models(sc, models)
     }
 
     /// As [`Lockstep::new`], with the predictor's models given (fitted once for many episodes).
     pub fn with_models(sc: &Scenario, models: Option<Models>) -> Result<Lockstep, String> {
         let model = sc.load_arm().map_err(|e| e.to_string())?;
-        let predictor = match (sc.has_debris(), models) {
+        let oracle_wanted = sc.forecasts() == Forecasts::Oracle;
+        if oracle_wanted && !sc.has_debris() {
+            return Err("lockstep: oracle-rrt needs debris (debris.scene is empty)".into());
+        }
+        let predictor = match (sc.has_debris() && !oracle_wanted, models) {
+            (false, _) => None,
             (true, Some(m)) => Some(PredictorLoop {
                 core: PredictorCore::new(m, sc),
                 forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
@@ -137,9 +213,27 @@ impl Lockstep {
             (true, None) => {
                 return Err("lockstep: a scenario with debris needs the predictor's models".into())
             }
-            _ => None,
         };
         let sim = SimCore::new(sc, model.clone())?;
+        let oracle = match (&sim.debris, oracle_wanted) {
+            (Some(d), true) => {
+                let dt = sc.period_ns() as f64 * 1e-9;
+                let horizon = sc.predictor.horizon_steps as f64 * sc.predictor.dt_s;
+                let ticks = sc.ticks() + (horizon / dt).ceil() as u64;
+                let every = ((ORACLE_SAMPLE_S / dt).round() as u64).max(1);
+                Some(OracleLoop {
+                    table: d.truth_table(dt, ticks, every),
+                    forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
+                    forecasts: 0,
+                    fresh: false,
+                    rate_hz: sc.predictor.rate_hz,
+                    steps: sc.predictor.horizon_steps as usize,
+                    dt_s: sc.predictor.dt_s,
+                    next_due_s: 0.0,
+                })
+            }
+            _ => None,
+        };
         let tracker = Tracker::new(model.clone(), TrackerConfig::from_scenario(sc));
         let req = sc.goal.request().ok_or("lockstep: the scenario gives no goal")?;
         let pose_goal = match req {
@@ -149,7 +243,7 @@ impl Lockstep {
         let unreachable = |p: &[f64; 3]| format!("lockstep: the pose goal at {p:?} is out of reach");
         // A pose goal is solved from the initial configuration, as the sources solve it at
         // their first state.
-        let (source, goal) = if sc.planner.method == "dk-rrt" {
+        let (source, goal) = if sc.replans() {
             // In process, the work per cycle is the iteration budget, never the wall clock.
             let mut core = Box::new(replanner(sc, model.clone()));
             core.cfg.enforce_deadline = false;
@@ -189,6 +283,7 @@ impl Lockstep {
             period_ns: sc.period_ns(),
             events: Vec::with_capacity(256),
             predictor,
+            oracle,
             frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
             source,
             goal,
@@ -198,6 +293,10 @@ impl Lockstep {
             goal_reached_s: None,
             started: false,
             clock: mono_ns,
+            motion: MotionFigures::default(),
+            prev_q: None,
+            trace: None,
+            debris_trace: Vec::new(),
         })
     }
 
@@ -219,10 +318,11 @@ impl Lockstep {
         if let TrajSource::Planner { core, out } = &mut self.source {
             if deliver_state && core.cycle_due(stamp) {
                 let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };
-                let fc = self
-                    .predictor
-                    .as_mut()
-                    .and_then(|p| std::mem::take(&mut p.fresh).then_some(&*p.forecast));
+                let fc = match (&mut self.predictor, &mut self.oracle) {
+                    (Some(p), _) => std::mem::take(&mut p.fresh).then_some(&*p.forecast),
+                    (None, Some(o)) => std::mem::take(&mut o.fresh).then_some(&*o.forecast),
+                    (None, None) => None,
+                };
                 let mut clock = self.clock;
                 let d = core.step(stamp, &m.q, view, fc, &self.goal, &mut clock, out);
                 if d.publish {
@@ -260,9 +360,90 @@ impl Lockstep {
             }
             Ok(())
         });
+        if let Some(o) = self.oracle.as_mut() {
+            // The predictor's plant-clock schedule, on the truth.
+            let t = self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9;
+            if t + 1e-9 >= o.next_due_s {
+                o.next_due_s = (t * o.rate_hz + 1e-9).floor() / o.rate_hz + 1.0 / o.rate_hz;
+                if o.table.forecast_into(t, o.steps, o.dt_s, &mut o.forecast) > 0 {
+                    o.forecasts += 1;
+                    o.fresh = true;
+                }
+            }
+        }
         let q: [f64; NJ] = self.sim.plant.true_state().0.into();
+        self.account_motion(&q);
         if self.goal_reached_s.is_none() && self.at_goal(&q) {
             self.goal_reached_s = Some(self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9);
+        }
+    }
+
+    /// Keeps a trace of the run from now on (every [`SAMPLE_TICKS`] ticks; allocates its room
+    /// for `seconds` of plant time at once).
+    pub fn keep_trace(&mut self, seconds: f64) {
+        let n = (seconds * 1e9 / (self.period_ns * SAMPLE_TICKS) as f64).ceil() as usize + 1;
+        self.trace = Some(Vec::with_capacity(n));
+        let objects = self.sim.debris.as_ref().map_or(0, |d| d.stats.objects);
+        self.debris_trace = Vec::with_capacity(n * (objects + 2));
+    }
+
+    /// Path length every tick; end-effector path error (and the trace) every
+    /// [`SAMPLE_TICKS`] ticks.
+    fn account_motion(&mut self, q: &[f64; NJ]) {
+        if let Some(p) = self.prev_q {
+            self.motion.path_length_rad += (0..NJ).map(|i| (q[i] - p[i]).powi(2)).sum::<f64>().sqrt();
+        }
+        self.prev_q = Some(*q);
+        let tick = self.sim.plant.tick();
+        if tick % SAMPLE_TICKS != 0 {
+            return;
+        }
+        let ns = tick * self.period_ns;
+        let ee_of = |m: &ArmModel, q: &[f64; NJ]| {
+            let x = m.fk(&dkrrt_model::JVec::from_row_slice(q)).translation.vector;
+            [x[0], x[1], x[2]]
+        };
+        let ee = ee_of(&self.model, q);
+        let des = self.tracker.desired(ns);
+        let q_des = des.map(|d| d.0);
+        let ee_des = q_des.map(|qd| ee_of(&self.model, &qd));
+        if let Some(d) = ee_des {
+            let e = ((ee[0] - d[0]).powi(2) + (ee[1] - d[1]).powi(2) + (ee[2] - d[2]).powi(2)).sqrt();
+            let m = &mut self.motion;
+            m.ee_sum_sq += e * e;
+            m.ee_n += 1;
+            m.ee_path_error_m_rms = (m.ee_sum_sq / m.ee_n as f64).sqrt();
+            m.ee_path_error_m_max = m.ee_path_error_m_max.max(e);
+        }
+        if self.trace.as_ref().is_some_and(|t| t.len() < t.capacity()) {
+            let t_s = ns as f64 * 1e-9;
+            let predicted = match &mut self.source {
+                TrajSource::Planner { core, .. } => core.predicted_clearance(q, t_s),
+                TrajSource::Straight { .. } => None,
+            };
+            let sample = TraceSample {
+                t_s,
+                q: *q,
+                qd: self.sim.plant.true_state().1.into(),
+                q_des,
+                qd_des: des.map(|d| d.1),
+                qdd_des: des.map(|d| d.2),
+                ee,
+                ee_des,
+                true_distance_m: self.sim.debris.as_ref().map(|d| d.distance_now_m).filter(|d| d.is_finite()),
+                predicted_clearance_m: predicted,
+            };
+            if let Some(t) = self.trace.as_mut() {
+                t.push(sample);
+            }
+            if let Some(d) = self.sim.debris.as_ref() {
+                let out = &mut self.debris_trace;
+                d.positions(|id, p| {
+                    if out.len() < out.capacity() {
+                        out.push((t_s, id, p));
+                    }
+                });
+            }
         }
     }
 
@@ -307,14 +488,25 @@ impl Lockstep {
             plant: self.sim.plant.stats,
             final_q: q.into(),
             debris: self.sim.debris.as_ref().map(|d| d.stats),
-            predictor: self.predictor.as_ref().map(|d| PredictorFigures {
-                method: sc.predictor.method.clone(),
-                forecasts: d.forecasts,
-                tracks: d.tracks,
-                observations: d.core.counters,
-                gate: *d.core.gate(),
-            }),
+            predictor: match (&self.predictor, &self.oracle) {
+                (Some(d), _) => Some(PredictorFigures {
+                    method: sc.predictor_method().to_string(),
+                    forecasts: d.forecasts,
+                    tracks: d.tracks,
+                    observations: d.core.counters,
+                    gate: *d.core.gate(),
+                }),
+                (None, Some(o)) => Some(PredictorFigures {
+                    method: "truth".into(),
+                    forecasts: o.forecasts,
+                    tracks: o.forecast.count,
+                    observations: ObsCounters::default(),
+                    gate: GateStats::default(),
+                }),
+                (None, None) => None,
+            },
             planner,
+            motion: self.motion,
         }
     }
 }

@@ -189,23 +189,36 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
     },
-    /// Threat episodes in lockstep, per scene and method: completion, collisions, planning time.
+    /// Threat episodes in lockstep, per scene and method: completion (95 % intervals),
+    /// collisions, execution and path errors, planning time; dk-rrt paired with every method.
     Study {
         /// Comma-separated scenes (default: all four).
         #[arg(long, value_delimiter = ',')]
         scenes: Option<Vec<String>>,
-        /// Episodes per scene.
-        #[arg(long, default_value_t = 10)]
-        episodes: u64,
-        /// Comma-separated methods: straight, dk-rrt.
-        #[arg(long, value_delimiter = ',', default_value = "straight,dk-rrt")]
+        /// Study size: episodes per scene small = 3 (a smoke run), medium = 40, full = 100.
+        #[arg(long, default_value = "medium", value_parser = ["small", "medium", "full"])]
+        size: String,
+        /// Episodes per scene (overrides --size).
+        #[arg(long)]
+        episodes: Option<u64>,
+        /// Comma-separated methods (default: all six): straight, rrt-static, cv-rrt, edmd-rrt,
+        /// dk-rrt, oracle-rrt.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "straight,rrt-static,cv-rrt,edmd-rrt,dk-rrt,oracle-rrt"
+        )]
         methods: Vec<String>,
         /// Master seed of the episodes.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Write {rows, summary} as JSON here (rows also stream to FILE.rows as JSON lines).
+        /// Write {rows, summary} as JSON here (rows also stream to FILE.rows.jsonl as JSON lines).
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Write study.json (rows + summary), study.md (tables, split, machine, command, git
+        /// revision) and rows.jsonl (streamed as episodes finish) into this directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Worker threads (default: the available cores).
         #[arg(long)]
         threads: Option<usize>,
@@ -320,11 +333,20 @@ fn main() -> ExitCode {
             dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
                 .map(|_| true)
         }
-        Cmd::Study { scenes, episodes, methods, seed, json, threads, goal } => {
+        Cmd::Study { scenes, size, episodes, methods, seed, json, out, threads, goal } => {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
+            let episodes = episodes.unwrap_or(match size.as_str() {
+                "small" => 3,
+                "full" => 100,
+                _ => 40,
+            });
+            // Every output path is checked before the study runs (nothing is learnt late).
             if let Some(p) = &json {
                 std::fs::write(p, "").map_err(|e| format!("--json {}: {e}", p.display()))?;
+            }
+            if let Some(d) = &out {
+                std::fs::create_dir_all(d).map_err(|e| format!("--out {}: {e}", d.display()))?;
             }
             let threads =
                 threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
@@ -336,21 +358,57 @@ fn main() -> ExitCode {
                 threads,
                 pose_goals: goal == "pose",
             };
-            let rows_path = json.as_ref().map(|p| p.with_extension("rows.jsonl"));
+            let rows_path = match (&out, &json) {
+                (Some(d), _) => Some(d.join("rows.jsonl")),
+                (None, Some(p)) => Some(p.with_extension("rows.jsonl")),
+                _ => None,
+            };
             let t0 = std::time::Instant::now();
-            let rows = dkrrt::study::run(&opts, rows_path.as_deref(), true)?;
+            let (rows, fits) = dkrrt::study::run(&opts, rows_path.as_deref(), true)?;
+            let wall_s = t0.elapsed().as_secs_f64();
+            let summary = dkrrt::study_report::summarize(&rows, &scenes, &methods, fits, seed);
             println!("{}", dkrrt::study::table(&rows, &scenes, &methods));
             println!(
-                "{} episodes x methods in {:.1} s wall ({} threads, seed {seed})",
-                rows.len(),
-                t0.elapsed().as_secs_f64(),
-                threads
+                "{} episodes x methods in {wall_s:.1} s wall ({threads} threads, seed {seed})",
+                rows.len()
             );
+            let info = dkrrt::study_report::RunInfo::now(&opts, &size, &goal, wall_s);
+            let doc = serde_json::json!({
+                "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal,
+                "run": info, "split": dkrrt::study_report::split_text(&opts), "summary": summary, "rows": rows,
+            });
+            let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
             if let Some(p) = &json {
-                let doc = serde_json::json!({ "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal, "rows": rows });
-                std::fs::write(p, serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?)
-                    .map_err(|e| format!("--json {}: {e}", p.display()))?;
+                std::fs::write(p, &text).map_err(|e| format!("--json {}: {e}", p.display()))?;
                 println!("rows: {}", p.display());
+            }
+            if let Some(d) = &out {
+                let w = |name: &str, body: &str| {
+                    std::fs::write(d.join(name), body)
+                        .map_err(|e| format!("--out {}: {e}", d.join(name).display()))
+                };
+                w("study.json", &text)?;
+                // The figures: Fig. 3 from the summary; Fig. 2, Fig. 4 and the clearance plot
+                // from a traced re-run of the dk-rrt episode that came closest to the debris.
+                let figs = d.join("figures");
+                std::fs::create_dir_all(&figs).map_err(|e| format!("--out {}: {e}", figs.display()))?;
+                let pick = rows
+                    .iter()
+                    .filter(|r| r.method == "dk-rrt" && r.completed)
+                    .min_by(|a, b| {
+                        a.min_distance_m
+                            .unwrap_or(f64::INFINITY)
+                            .total_cmp(&b.min_distance_m.unwrap_or(f64::INFINITY))
+                    })
+                    .or_else(|| rows.iter().find(|r| r.error.is_none()));
+                let trace = match pick {
+                    Some(r) => Some(dkrrt::study::trace_episode(&opts, &r.scene, r.episode, &r.method)?),
+                    None => None,
+                };
+                let files = dkrrt::figures::study_figures(&figs, &summary, trace.as_ref())?;
+                let md = dkrrt::study_report::markdown(&summary, &opts, &info, &files, d, trace.as_ref());
+                w("study.md", &md)?;
+                println!("study: {} ({} figure files)", d.display(), files.len());
             }
             Ok(rows.iter().all(|r| r.error.is_none()))
         }

@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::Path;
 use std::sync::Mutex;
 
-use dkrrt_config::{EpisodeCfg, Scenario};
+use dkrrt_config::{EpisodeCfg, Forecasts, Scenario, PLANNER_METHODS};
 use dkrrt_predictor::Models;
 use serde::Serialize;
 
@@ -37,6 +37,16 @@ pub struct Row {
     pub time_to_goal_s: Option<f64>,
     pub min_distance_m: Option<f64>,
     pub replans: u64,
+    /// Execution error: the joint tracking error (measured vs reference), RMS and max, rad.
+    pub tracking_error_rad_rms: f64,
+    pub tracking_error_rad_max: f64,
+    /// End-effector path error, desired vs real, RMS and max, m.
+    pub ee_path_error_m_rms: f64,
+    pub ee_path_error_m_max: f64,
+    /// Joint-space length of the real motion, rad.
+    pub path_length_rad: f64,
+    /// The planner's smallest predicted clearance of its active plans, m.
+    pub min_predicted_clearance_m: Option<f64>,
     pub plan_ms: PlanMs,
     pub first_plan_ms: Option<f64>,
     pub fallbacks_keep: u64,
@@ -52,6 +62,41 @@ pub struct Row {
     pub wall_s: f64,
     pub episode_gen_s: f64,
     pub error: Option<String>,
+}
+
+impl Row {
+    /// A row with nothing measured yet (not completed, no collision, no figures).
+    pub fn empty(scene: &str, index: u64, method: &str) -> Row {
+        Row {
+            scene: scene.to_string(),
+            episode: index,
+            method: method.to_string(),
+            completed: false,
+            collision: false,
+            time_to_goal_s: None,
+            min_distance_m: None,
+            replans: 0,
+            tracking_error_rad_rms: 0.0,
+            tracking_error_rad_max: 0.0,
+            ee_path_error_m_rms: 0.0,
+            ee_path_error_m_max: 0.0,
+            path_length_rad: 0.0,
+            min_predicted_clearance_m: None,
+            plan_ms: PlanMs::default(),
+            first_plan_ms: None,
+            fallbacks_keep: 0,
+            fallbacks_escape: 0,
+            fallbacks_brake: 0,
+            deadline_misses: 0,
+            safe_holds: 0,
+            straight_duration_s: 0.0,
+            time_limit_s: 0.0,
+            plant_s: 0.0,
+            wall_s: 0.0,
+            episode_gen_s: 0.0,
+            error: None,
+        }
+    }
 }
 
 /// The study's options.
@@ -96,39 +141,17 @@ pub fn run_episode(
     scene: &str,
     index: u64,
     method: &str,
-    models: &Models,
+    models: Option<&Models>,
 ) -> Row {
     let t_wall = std::time::Instant::now();
-    let mut row = Row {
-        scene: scene.to_string(),
-        episode: index,
-        method: method.to_string(),
-        completed: false,
-        collision: false,
-        time_to_goal_s: None,
-        min_distance_m: None,
-        replans: 0,
-        plan_ms: PlanMs::default(),
-        first_plan_ms: None,
-        fallbacks_keep: 0,
-        fallbacks_escape: 0,
-        fallbacks_brake: 0,
-        deadline_misses: 0,
-        safe_holds: 0,
-        straight_duration_s: 0.0,
-        time_limit_s: 0.0,
-        plant_s: 0.0,
-        wall_s: 0.0,
-        episode_gen_s: 0.0,
-        error: None,
-    };
+    let mut row = Row::empty(scene, index, method);
     let res = (|| -> Result<(), String> {
         let (sc, ep) = episode.as_ref().map_err(|e| e.clone())?;
         let mut sc = sc.clone();
         sc.planner.method = method.to_string();
         row.straight_duration_s = ep.straight_duration_s;
         row.time_limit_s = ep.time_limit_s;
-        let mut ls = Lockstep::with_models(&sc, Some(models.clone()))?;
+        let mut ls = Lockstep::with_models(&sc, models.cloned())?;
         let ticks = (ep.time_limit_s * sc.run.control_hz).round() as u64;
         for _ in 0..ticks {
             ls.tick(true);
@@ -142,6 +165,11 @@ pub fn run_episode(
         row.completed = !row.collision && ls.goal_reached_s.is_some_and(|t| t <= ep.time_limit_s);
         row.min_distance_m = r.debris.and_then(|d| d.min_distance_m);
         row.safe_holds = r.safe_hold_entries;
+        row.tracking_error_rad_rms = r.tracking_error_rad_rms;
+        row.tracking_error_rad_max = r.tracking_error_rad_max;
+        row.ee_path_error_m_rms = r.motion.ee_path_error_m_rms;
+        row.ee_path_error_m_max = r.motion.ee_path_error_m_max;
+        row.path_length_rad = r.motion.path_length_rad;
         row.plant_s = r.ticks as f64 * sc.period_ns() as f64 * 1e-9;
         if let Some(p) = r.planner {
             row.replans = p.replans;
@@ -151,6 +179,7 @@ pub fn run_episode(
             row.fallbacks_escape = p.fallbacks.escape;
             row.fallbacks_brake = p.fallbacks.brake;
             row.deadline_misses = p.deadline_misses;
+            row.min_predicted_clearance_m = p.min_predicted_clearance_m;
         }
         Ok(())
     })();
@@ -159,20 +188,90 @@ pub fn run_episode(
     row
 }
 
+/// One method's forecast model, fitted once for the whole study, and what it cost.
+pub struct MethodFit {
+    pub planner_method: String,
+    /// The predictor method it forecasts with (`none`, `truth`, or a predictor method).
+    pub predictor_method: String,
+    pub models: Option<Models>,
+    /// Seconds to fit the method's models at start-up (on generic scenes, never an evaluated
+    /// episode): the EDMD / dual-data regressions, and for the deep method the fit of the
+    /// translation model around the shipped attitude network (whose own training is `dkrrt
+    /// train`'s, not repeated here).
+    pub fit_s: f64,
+    /// Whether the method plans on the model's forecasts (else the fit serves only the
+    /// predictor's filtering, and its cost is not the method's).
+    pub forecasts_with_model: bool,
+}
+
+/// Fits every method's models once (methods on the same predictor method share the fit and
+/// its time).
+pub fn fit_methods(base: &Scenario, methods: &[String]) -> Result<Vec<MethodFit>, String> {
+    let mut out: Vec<MethodFit> = Vec::new();
+    for m in methods {
+        let mut sc = base.clone();
+        sc.planner.method = m.clone();
+        // What the method forecasts with, and the predictor models its run needs (the
+        // straight method plans on nothing but keeps the default predictor running, for the
+        // report; rrt-static uses the predictor's filtered poses only).
+        let (label, fit_method) = match sc.forecasts() {
+            Forecasts::None => ("none".to_string(), Some(base.predictor_method().to_string())),
+            Forecasts::Oracle => ("truth".to_string(), None),
+            Forecasts::Static => {
+                ("latest estimate, held".to_string(), Some(sc.predictor_method().to_string()))
+            }
+            Forecasts::Predictor => {
+                (sc.predictor_method().to_string(), Some(sc.predictor_method().to_string()))
+            }
+        };
+        let uses_model = matches!(sc.forecasts(), Forecasts::Predictor);
+        let (models, fit_s) = match fit_method {
+            None => (None, 0.0),
+            Some(fm) => {
+                let shared = out.iter().find(|f| f.models.as_ref().is_some_and(|x| x.method.name() == fm));
+                match shared {
+                    Some(f) => (f.models.clone(), f.fit_s),
+                    None => {
+                        let mut fs = base.clone();
+                        fs.predictor.method = fm;
+                        fs.planner.method = "dk-rrt".into();
+                        let t = std::time::Instant::now();
+                        let models = dkrrt_planner::predict::fit_models(&fs)?;
+                        (Some(models), t.elapsed().as_secs_f64())
+                    }
+                }
+            }
+        };
+        out.push(MethodFit {
+            planner_method: m.clone(),
+            predictor_method: label,
+            models,
+            fit_s,
+            forecasts_with_model: uses_model,
+        });
+    }
+    Ok(out)
+}
+
 /// Runs the study; rows stream to `rows_path` (JSON lines) as they finish.
-pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Result<Vec<Row>, String> {
+pub fn run(
+    opts: &StudyOptions,
+    rows_path: Option<&Path>,
+    progress: bool,
+) -> Result<(Vec<Row>, Vec<crate::study_report::FitCost>), String> {
     for s in &opts.scenes {
         if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) {
             return Err(format!("--scenes: unknown scene {s:?} ({})", dkrrt_debris::SCENE_NAMES.join(", ")));
         }
     }
     for m in &opts.methods {
-        if m != "straight" && m != "dk-rrt" {
-            return Err(format!("--methods: unknown method {m:?} (straight, dk-rrt)"));
+        if !PLANNER_METHODS.contains(&m.as_str()) {
+            return Err(format!("--methods: unknown method {m:?} ({})", PLANNER_METHODS.join(", ")));
         }
     }
     let base = base_scenario();
-    let models = dkrrt_planner::predict::fit_models(&base)?;
+    let fits = fit_methods(&base, &opts.methods)?;
+    let models_of = |m: &str| fits.iter().find(|f| f.planner_method == m).and_then(|f| f.models.as_ref());
     // One job per episode: it is generated once and run with every method.
     let mut jobs = Vec::new();
     for s in &opts.scenes {
@@ -188,6 +287,16 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
     let state = Mutex::new((0usize, Vec::with_capacity(total), sink));
     let next = Mutex::new(0usize);
     let threads = opts.threads.max(1).min(jobs.len().max(1));
+    // A bar with the ETA on a terminal; the per-episode lines above it (or alone, in a log).
+    let bar =
+        if progress { indicatif::ProgressBar::new(total as u64) } else { indicatif::ProgressBar::hidden() };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "study [{bar:30}] {pos}/{len} episode runs, {elapsed} elapsed, ETA {eta}  {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
     let t0 = std::time::Instant::now();
     std::thread::scope(|s| {
         for _ in 0..threads {
@@ -203,7 +312,7 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
                 let episode = episode_scenario(&base, scene, *e, opts.seed, opts.pose_goals);
                 let gen_s = t_gen.elapsed().as_secs_f64();
                 for m in &opts.methods {
-                    let mut row = run_episode(&episode, scene, *e, m, &models);
+                    let mut row = run_episode(&episode, scene, *e, m, models_of(m));
                     row.episode_gen_s = gen_s;
                     let mut st = state.lock().unwrap();
                     st.0 += 1;
@@ -213,7 +322,7 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
                     if progress {
                         let el = t0.elapsed().as_secs_f64();
                         let eta = el / st.0 as f64 * (total - st.0) as f64;
-                        eprintln!(
+                        let line = format!(
                             "study: [{}/{total}] {} #{} {}: {}{} ({:.1} s plant in {:.2} s; ETA {:.0} s)",
                             st.0,
                             row.scene,
@@ -231,12 +340,20 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
                             row.wall_s,
                             eta
                         );
+                        if bar.is_hidden() {
+                            eprintln!("{line}");
+                        } else {
+                            bar.println(line);
+                        }
+                        bar.set_message(format!("{} #{} {}", row.scene, row.episode, row.method));
+                        bar.inc(1);
                     }
                     st.1.push(row);
                 }
             });
         }
     });
+    bar.finish_and_clear();
     let mut rows = state.into_inner().map_err(|e| e.to_string())?.1;
     rows.sort_by(|a, b| {
         (a.scene.as_str(), a.episode, a.method.as_str()).cmp(&(
@@ -245,7 +362,15 @@ pub fn run(opts: &StudyOptions, rows_path: Option<&Path>, progress: bool) -> Res
             b.method.as_str(),
         ))
     });
-    Ok(rows)
+    let costs = fits
+        .iter()
+        .map(|f| crate::study_report::FitCost {
+            method: f.planner_method.clone(),
+            forecasts: f.predictor_method.clone(),
+            fit_s: if f.forecasts_with_model { f.fit_s } else { 0.0 },
+        })
+        .collect();
+    Ok((rows, costs))
 }
 
 /// The per-scene table.
@@ -287,4 +412,41 @@ pub fn table(rows: &[Row], scenes: &[String], methods: &[String]) -> String {
         }
     }
     s
+}
+
+/// Re-runs one episode of one method with a trace (for the figures): the same episode and
+/// models as in the study, so the same outcome.
+pub fn trace_episode(
+    opts: &StudyOptions,
+    scene: &str,
+    index: u64,
+    method: &str,
+) -> Result<crate::figures::EpisodeTrace, String> {
+    let base = base_scenario();
+    let fits = fit_methods(&base, &[method.to_string()])?;
+    let (sc, ep) = episode_scenario(&base, scene, index, opts.seed, opts.pose_goals)?;
+    let mut sc = sc;
+    sc.planner.method = method.to_string();
+    let mut ls = Lockstep::with_models(&sc, fits[0].models.clone())?;
+    ls.keep_trace(ep.time_limit_s + 1.0);
+    let ticks = (ep.time_limit_s * sc.run.control_hz).round() as u64;
+    for _ in 0..ticks {
+        ls.tick(true);
+        if ls.collided()
+            || ls.goal_reached_s.is_some_and(|t| ls.sim.plant.tick() as f64 / sc.run.control_hz > t + 1.0)
+        {
+            break;
+        }
+    }
+    Ok(crate::figures::EpisodeTrace {
+        scene: scene.to_string(),
+        episode: index,
+        method: method.to_string(),
+        samples: ls.trace.take().unwrap_or_default(),
+        debris: std::mem::take(&mut ls.debris_trace),
+        v_max: sc.motion.v_max,
+        a_max: sc.motion.a_max,
+        j_max: sc.motion.j_max,
+        margin_m: sc.planner.margin_m,
+    })
 }

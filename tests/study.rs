@@ -61,3 +61,105 @@ fn a_small_study_writes_every_row_and_the_planner_beats_the_straight_motion() {
     assert_eq!(streamed.lines().count(), 4);
     let _ = std::fs::remove_dir_all(d);
 }
+
+#[test]
+fn every_method_runs_the_same_episodes_and_the_study_writes_its_report() {
+    let d = std::env::temp_dir().join(format!("dkrrt-study-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .args(["study", "--scenes", "fast-crossing", "--episodes", "1", "--seed", "5", "--out"])
+        .arg(&d)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(d.join("study.json")).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    let methods = ["straight", "rrt-static", "cv-rrt", "edmd-rrt", "dk-rrt", "oracle-rrt"];
+    assert_eq!(rows.len(), methods.len(), "the default is all six methods");
+    for m in methods {
+        let r = rows.iter().find(|r| r["method"] == m).unwrap_or_else(|| panic!("no {m} row"));
+        assert!(r["error"].is_null(), "{r}");
+        assert_eq!(r["episode"], 0);
+        for k in ["tracking_error_rad_rms", "ee_path_error_m_rms", "path_length_rad"] {
+            assert!(r[k].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{m}: {k} in {r}");
+        }
+    }
+    let by = |m: &str| rows.iter().find(|r| r["method"] == m).unwrap();
+    // The episode aims debris at the straight motion; the true future always avoids it.
+    assert_eq!(by("straight")["collision"], true);
+    assert_eq!(by("oracle-rrt")["completed"], true, "{}", by("oracle-rrt"));
+    assert!(by("oracle-rrt")["path_length_rad"].as_f64().unwrap() > 0.5);
+    // The summary: one cell per method with its Wilson interval, dk-rrt paired with the others,
+    // each method's fitting cost, the split and where it ran.
+    let cells = doc["summary"]["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 6);
+    for c in cells {
+        let (lo, hi) = (c["completion_ci"][0].as_f64().unwrap(), c["completion_ci"][1].as_f64().unwrap());
+        let p = c["completion"].as_f64().unwrap();
+        assert!(lo <= p && p <= hi && hi - lo > 0.5, "one episode: a wide interval ({c})");
+    }
+    assert_eq!(doc["summary"]["comparisons"].as_array().unwrap().len(), 5);
+    assert_eq!(doc["summary"]["fits"].as_array().unwrap().len(), 6);
+    assert!(doc["split"].as_str().unwrap().contains("never"), "{}", doc["split"]);
+    assert!(doc["run"]["git_revision"].is_string() && doc["run"]["machine"].is_string());
+    let md = std::fs::read_to_string(d.join("study.md")).unwrap();
+    for want in ["# dkrrt study", "Split (no leakage)", "| fast-crossing | oracle-rrt | 1 |", "McNemar"] {
+        assert!(md.contains(want), "study.md lacks {want:?}:\n{md}");
+    }
+    // The four figures, as PNG and SVG, linked from study.md.
+    for f in ["fig2-ee-path", "fig3-methods", "fig4-joint-profiles", "clearance"] {
+        let png = std::fs::read(d.join("figures").join(format!("{f}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{f}.png");
+        assert!(png.len() > 10_000, "{f}.png: {} bytes", png.len());
+        let svg = std::fs::read_to_string(d.join("figures").join(format!("{f}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg"), "{f}.svg");
+        assert!(md.contains(&format!("figures/{f}.png")), "study.md links {f}");
+    }
+    // Rows streamed as they finished.
+    assert_eq!(std::fs::read_to_string(d.join("rows.jsonl")).unwrap().lines().count(), 6);
+    let _ = std::fs::remove_dir_all(d);
+}
+
+#[test]
+fn the_process_set_refuses_the_oracle() {
+    let d = std::env::temp_dir().join(format!("dkrrt-oracle-{}.toml", std::process::id()));
+    let sc = dkrrt_config::DEFAULT_SCENARIO.replace("method = \"dk-rrt\"", "method = \"oracle-rrt\"");
+    assert!(sc.contains("method = \"oracle-rrt\""));
+    std::fs::write(&d, sc).unwrap();
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_dkrrt")).args(["launch", "--scenario"]).arg(&d).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("oracle-rrt") && err.contains("in-process"), "{err}");
+    let _ = std::fs::remove_file(d);
+}
+
+#[test]
+fn no_episode_reaches_the_models_the_study_plans_with() {
+    // The study fits every method's models once, on generic random scenes: fitting for two
+    // different episodes of different scenes gives the very same models as fitting for none.
+    let base = dkrrt::study::base_scenario();
+    assert_eq!(base.predictor.fit, "generic");
+    let plain = dkrrt_planner::predict::fit_models(&base).unwrap();
+    for (scene, index) in [("dense", 0), ("tumbling-rods", 3)] {
+        let (sc, _) = dkrrt::study::episode_scenario(&base, scene, index, 11, false).unwrap();
+        assert!(sc.scene_override.is_some(), "the episode carries its own debris");
+        let m = dkrrt_planner::predict::fit_models(&sc).unwrap();
+        assert_eq!(m.trans.ab, plain.trans.ab, "{scene} #{index}: translation model");
+        assert_eq!(m.att.ab, plain.att.ab, "{scene} #{index}: attitude model");
+    }
+    // The split is stated with the output.
+    let opts = dkrrt::study::StudyOptions {
+        scenes: vec!["dense".into()],
+        episodes: 4,
+        methods: vec!["dk-rrt".into()],
+        seed: 11,
+        threads: 1,
+        pose_goals: false,
+    };
+    let split = dkrrt::study_report::split_text(&opts);
+    assert!(
+        split.contains("seed 11") && split.contains("generic random scenes") && split.contains("never"),
+        "{split}"
+    );
+}

@@ -45,6 +45,9 @@ pub fn run(
     stats_path: Option<&Path>,
 ) -> Result<PlannerReport, String> {
     signals::install();
+    if sc.forecasts() == dkrrt_config::Forecasts::Oracle {
+        return Err("planner: planner.method = \"oracle-rrt\" needs the true future of the debris, which only the in-process lockstep has (`dkrrt eval`, `dkrrt study`)".into());
+    }
     let (model, lim, req) = crate::source_setup(sc, goal, "planner")?;
     // The goal in force (a joint goal); a pose goal waits for the first state to be solved.
     let (mut goal, mut pending_pose) = match req {

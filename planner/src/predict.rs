@@ -73,9 +73,9 @@ impl ObsCounters {
 /// (seeded, initial states perturbed for named scenes) with the scenario's sensor, and the
 /// method is fitted on the filtered estimates. Allocates; start-up only.
 pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
-    let method = Method::from_name(&sc.predictor.method).ok_or_else(|| {
+    let method = Method::from_name(sc.predictor_method()).ok_or_else(|| {
         let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
-        format!("predictor.method {:?}: unknown (one of {})", sc.predictor.method, names.join(", "))
+        format!("predictor.method {:?}: unknown (one of {})", sc.predictor_method(), names.join(", "))
     })?;
     let scene = sc.load_debris_scene().map_err(|e| e.to_string())?;
     let mut fit = FitConfig {
@@ -154,6 +154,9 @@ pub struct PredictorCore {
     pub newest_t: f64,
     pub counters: ObsCounters,
     next_due_s: f64,
+    /// `rrt-static`: every step of a forecast is the track's latest estimated pose, with no
+    /// uncertainty (the planner adds its margin): no prediction.
+    hold_still: bool,
 }
 
 impl PredictorCore {
@@ -171,6 +174,7 @@ impl PredictorCore {
             newest_t: f64::NEG_INFINITY,
             counters: ObsCounters::default(),
             next_due_s: 0.0,
+            hold_still: sc.forecasts() == dkrrt_config::Forecasts::Static,
         }
     }
 
@@ -294,6 +298,18 @@ impl PredictorCore {
             tr.id = id;
             tr.bounding_radius = radius;
             tr.shape = shape;
+            if self.hold_still {
+                // rrt-static: the latest estimate, held (the same pose at every step).
+                let x = self.pred.track(id).map_or([0.0; 13], |t| t.state);
+                let step = ForecastStep {
+                    p: [x[0] - b[0], x[1] - b[1], x[2] - b[2]],
+                    q: [x[6], x[7], x[8], x[9]],
+                    sigma_m: 0.0,
+                    sigma_pos_m: 0.0,
+                };
+                tr.steps[..self.steps].iter_mut().for_each(|st| *st = step);
+                continue;
+            }
             let lag = ((t0 - self.buf.t0(i)) / dt).max(0.0);
             for k in 1..=self.steps {
                 // Fractional step of this track's own forecast that falls on the common grid.

@@ -56,7 +56,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     let t_fit = mono_ns();
     let models = fit_models(sc)?;
     let fit_s = (mono_ns() - t_fit) as f64 * 1e-9;
-    eprintln!("predictor: {} models fitted in {fit_s:.2} s", sc.predictor.method);
+    eprintln!("predictor: {} models fitted in {fit_s:.2} s", sc.predictor_method());
     let mut core = PredictorCore::new(models, sc);
 
     let bus = Bus::new(run, "predictor").map_err(|e| e.to_string())?;
@@ -150,7 +150,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     let _ = hb.maybe_send(mono_ns(), true, 0, ProcessState::Stopping, forecasts, pacer.misses, 0, 0);
     let span = first_fc.map_or(0.0, |f| last_fc - f);
     let report = PredictorReport {
-        method: sc.predictor.method.clone(),
+        method: sc.predictor_method().to_string(),
         fit_s,
         forecasts,
         forecast_rate_hz: if span > 0.0 { (forecasts - 1) as f64 / span } else { 0.0 },

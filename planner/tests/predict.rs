@@ -157,3 +157,52 @@ fn an_unknown_method_names_the_field() {
 
 #[global_allocator]
 static ALLOC: dkrrt_rt::alloc_count::CountingAlloc = dkrrt_rt::alloc_count::CountingAlloc;
+
+#[test]
+fn each_planning_method_forecasts_with_its_own_model() {
+    let mut sc = scenario("sparse-slow", "deep-koopman-online");
+    for (m, want) in [
+        ("dk-rrt", "deep-koopman-online"),
+        ("straight", "deep-koopman-online"),
+        ("cv-rrt", "constant-velocity"),
+        ("edmd-rrt", dkrrt_config::EDMD_BASELINE),
+        ("rrt-static", "constant-velocity"),
+    ] {
+        sc.planner.method = m.into();
+        assert_eq!(sc.predictor_method(), want, "{m}");
+    }
+    sc.planner.method = "edmd-rrt".into();
+    assert_eq!(fit_models(&sc).unwrap().method.name(), dkrrt_config::EDMD_BASELINE);
+}
+
+#[test]
+fn rrt_static_holds_the_latest_estimate_with_no_uncertainty() {
+    let mut sc = scenario("sparse-slow", "deep-koopman-online");
+    sc.planner.method = "rrt-static".into();
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    feed(&mut side, &mut core, 1500);
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let n = core.forecast_into(&mut msg);
+    assert!(n >= 3, "tracks: {n}");
+    let b = sc.debris.base_lvlh;
+    for tr in &msg.tracks[..n] {
+        let first = tr.steps[0];
+        // Every step the same pose, no bound: the debris are held where they were last seen.
+        for st in &tr.steps[..msg.steps as usize] {
+            assert_eq!(st, &first);
+        }
+        assert_eq!((first.sigma_m, first.sigma_pos_m), (0.0, 0.0));
+        // ... and that pose is the predictor's latest estimate (base frame), near the truth now.
+        let est = core.predictor().track(tr.id).unwrap().state;
+        assert_eq!(first.p, [est[0] - b[0], est[1] - b[1], est[2] - b[2]]);
+        let w = side.world();
+        let d = &w.debris()[w.index_of(tr.id).unwrap()];
+        let err = ((d.state.p.x - b[0] - first.p[0]).powi(2)
+            + (d.state.p.y - b[1] - first.p[1]).powi(2)
+            + (d.state.p.z - b[2] - first.p[2]).powi(2))
+        .sqrt();
+        assert!(err < 0.1, "id {}: held pose {err} m from the truth", tr.id);
+    }
+    msg.validate(&lim()).unwrap();
+}

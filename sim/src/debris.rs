@@ -76,6 +76,8 @@ pub struct DebrisSide {
     contacts: [ContactPair; 8],
     /// Running figures.
     pub stats: DebrisStats,
+    /// Smallest arm–debris separation at the last check, m (infinite before the first).
+    pub distance_now_m: f64,
 }
 
 impl DebrisSide {
@@ -104,7 +106,22 @@ impl DebrisSide {
             shapes: Vec::with_capacity(MAX_DEBRIS),
             contacts: [ContactPair::default(); 8],
             stats: DebrisStats { objects, observations: first, ..DebrisStats::default() },
+            distance_now_m: f64::INFINITY,
         })
+    }
+
+    /// The true future of this world for `ticks` more ticks of `dt` (for `oracle-rrt`; see
+    /// [`crate::oracle`]), kept every `sample_ticks` ticks. Allocates: start-up only.
+    pub fn truth_table(&self, dt: f64, ticks: u64, sample_ticks: u64) -> crate::oracle::TruthTable {
+        crate::oracle::TruthTable::record(&self.world, dt, ticks, sample_ticks, self.base)
+    }
+
+    /// Every object's id and true position in the arm's base frame.
+    pub fn positions(&self, mut f: impl FnMut(u32, [f64; 3])) {
+        let b = self.base;
+        for d in self.world.debris() {
+            f(d.id, [d.state.p.x - b[0], d.state.p.y - b[1], d.state.p.z - b[2]]);
+        }
     }
 
     /// The world (read-only).
@@ -146,6 +163,7 @@ impl DebrisSide {
         // Reported distances are separations: 0 when touching or overlapping (the closed-form
         // primitives measure a penetration, parry's hulls do not; one convention in reports).
         pr.min_distance = pr.min_distance.max(0.0);
+        self.distance_now_m = pr.min_distance;
         let s = &mut self.stats;
         s.ticks_checked += 1;
         if pr.min_distance.is_finite() && s.min_distance_m.is_none_or(|m| pr.min_distance < m) {

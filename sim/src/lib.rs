@@ -2,11 +2,13 @@
 //!
 //! * [`plant`]: the plant core, a library with a step function, usable without IPC.
 //! * [`debris`]: the debris world, its sensor and the per-tick arm–debris contact check.
+//! * [`oracle`]: the recorded true future of the debris (the `oracle-rrt` method's forecasts).
 //! * [`core`]: the simulator's tick (plant + debris + contact check + sensor), shared by the
 //!   process and the in-process lockstep.
 //! * [`process`]: the `dkrrt sim` process shell (iceoryx2 + clock).
 
 pub mod core;
 pub mod debris;
+pub mod oracle;
 pub mod plant;
 pub mod process;

@@ -220,6 +220,12 @@ impl Tracker {
         }
     }
 
+    /// The desired joint positions, velocities and accelerations at plant time `ns` (the
+    /// trajectory, the brake or the hold), or `None` while idle (no reference yet).
+    pub fn desired(&self, ns: u64) -> Option<([f64; NJ], [f64; NJ], [f64; NJ])> {
+        (self.mode != ControllerMode::Idle).then(|| self.reference(ns))
+    }
+
     fn switch(&mut self, to: ControllerMode, reason: Reason, ns: u64) -> ModeEvent {
         let ev = ModeEvent { tick: self.tick, plant_ns: ns, from: self.mode, to, reason };
         self.mode = to;

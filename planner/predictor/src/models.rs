@@ -80,6 +80,14 @@ impl Method {
     pub fn online(&self) -> bool {
         matches!(self, Method::KoopmanOnline | Method::DualData | Method::DeepKoopmanOnline)
     }
+    /// Whether the method's forecasts include the predictor's physical attitude channels: a
+    /// rod's axis by torque-free precession ([`crate::axis`]) and a box's attitude by Euler's
+    /// equations ([`crate::euler`]), each calibrated online. The online Koopman methods (ours)
+    /// do; the baselines (constant velocity, fixed EDMD) forecast attitude with their model
+    /// alone.
+    pub fn attitude_physics(&self) -> bool {
+        self.online()
+    }
     /// Whether the method needs a trained deep Koopman model ([`Models::fit_with_deep`]).
     pub fn deep(&self) -> bool {
         matches!(self, Method::DeepKoopman | Method::DeepKoopmanOnline)

@@ -71,6 +71,10 @@ pub struct PredictorConfig {
     /// wider, step-to-step jumpier bounds than the fitted ones, and the threat-episode
     /// completion fell from 85 % to 50–60 % on tumbling-rods.)
     pub calib_steps: usize,
+    /// Whether forecasts use the physical attitude channels (a rod's axis by precession, a
+    /// box's attitude by Euler's equations); `None`: as the method says
+    /// ([`crate::Method::attitude_physics`]: the online Koopman methods do, the baselines not).
+    pub attitude_physics: Option<bool>,
 }
 
 impl Default for PredictorConfig {
@@ -91,6 +95,7 @@ impl Default for PredictorConfig {
             calib_factor: 1.5,
             calib_min_obs: 50,
             calib_steps: 10,
+            attitude_physics: None,
             event_factor: 3.0,
             event_pos_noise: 0.05,
             event_att_noise: 0.08,
@@ -404,6 +409,11 @@ impl DebrisPredictor {
         }
     }
 
+    /// Whether forecasts use the physical attitude channels ([`PredictorConfig::attitude_physics`]).
+    pub fn attitude_physics(&self) -> bool {
+        self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics())
+    }
+
     /// Configuration.
     pub fn config(&self) -> &PredictorConfig {
         &self.cfg
@@ -576,8 +586,16 @@ impl DebrisPredictor {
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
             self.stats.maneuvers += 1;
         }
-        tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
-        tr.euler.update(o.t, &tr.filter.x[QUAT], self.models.dt, self.models.horizon, self.models.frame_rate);
+        if self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
+            tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
+            tr.euler.update(
+                o.t,
+                &tr.filter.x[QUAT],
+                self.models.dt,
+                self.models.horizon,
+                self.models.frame_rate,
+            );
+        }
         {
             let (x, t, fr) = (tr.filter.x, tr.filter.t, self.models.frame_rate);
             tr.score.score(o.t, |tau| {
@@ -706,6 +724,7 @@ impl DebrisPredictor {
             }
         }
         let (floor, factor) = (self.cfg.calib_floor, self.cfg.calib_factor);
+        let physics = self.attitude_physics();
         for (k, &i) in sel[..n].iter().enumerate() {
             let tr = &mut self.tracks[i as usize];
             tr.pos_bound.radii(&mut buf.pos_radius[k * hb..k * hb + h]);
@@ -728,12 +747,27 @@ impl DebrisPredictor {
             if tr.n_obs >= self.cfg.calib_min_obs {
                 tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
             }
-            let om = tr.axis.prec.omega();
             let rows = k * hb..k * hb + h;
-            tr.axis.prec.axes_into(&om, tr.filter.t - tr.axis.prec.t, buf.dt, &mut buf.axis[rows.clone()]);
-            let n_cal = tr.axis.radii(floor[1], factor, &mut buf.axis_radius[rows.clone()]);
-            let (ar, at) = (&mut buf.axis_radius[rows.clone()], &buf.att_radius[rows]);
-            ar[n_cal..].copy_from_slice(&at[n_cal..]);
+            if physics {
+                let om = tr.axis.prec.omega();
+                tr.axis.prec.axes_into(
+                    &om,
+                    tr.filter.t - tr.axis.prec.t,
+                    buf.dt,
+                    &mut buf.axis[rows.clone()],
+                );
+                let n_cal = tr.axis.radii(floor[1], factor, &mut buf.axis_radius[rows.clone()]);
+                let (ar, at) = (&mut buf.axis_radius[rows.clone()], &buf.att_radius[rows]);
+                ar[n_cal..].copy_from_slice(&at[n_cal..]);
+            } else {
+                // The model's own attitude: its body z axis, with the attitude bound.
+                for o in rows {
+                    let x = &buf.states[o * N..(o + 1) * N];
+                    buf.axis[o] =
+                        dkrrt_collision::pose::quat_rotate(&[x[6], x[7], x[8], x[9]], &[0.0, 0.0, 1.0]);
+                    buf.axis_radius[o] = buf.att_radius[o];
+                }
+            }
             // Full attitude: the model's, or beyond the model's own calibrated window the
             // torque-free forecast where that is calibrated tighter.
             let rows = k * hb..k * hb + h;
@@ -743,7 +777,11 @@ impl DebrisPredictor {
                 buf.full_radius[o] = buf.att_radius[o];
             }
             let mut er = [0.0; crate::calib::MAX_STEPS];
-            let n_e = tr.euler.radii(floor[1], factor, &mut er[..h.min(crate::calib::MAX_STEPS)]);
+            let n_e = if physics {
+                tr.euler.radii(floor[1], factor, &mut er[..h.min(crate::calib::MAX_STEPS)])
+            } else {
+                0
+            };
             let first = self.cfg.calib_steps.min(n_e);
             if (first..n_e).any(|s| er[s] < buf.att_radius[k * hb + s]) {
                 let mut eq = [[0.0; 4]; crate::calib::MAX_STEPS];

@@ -312,7 +312,9 @@ fn boxes_get_the_torque_free_attitude_beyond_the_calibrated_window() {
     // Constant rate with an honest attitude bound (a tumbler can be anywhere by 4 s).
     let models = Models::constant_velocity(0.1, 40, rec.mean_motion, 0.05, 3.0);
     let run = |with_shapes: bool| {
-        let mut pr = DebrisPredictor::new(models.clone(), PredictorConfig::default());
+        // The channels on, with the constant-rate model (which alone would not use them).
+        let cfg = PredictorConfig { attitude_physics: Some(true), ..PredictorConfig::default() };
+        let mut pr = DebrisPredictor::new(models.clone(), cfg);
         let mut buf = ForecastBuffer::for_predictor(&pr);
         for o in rec.obs.iter().filter(|o| o.t <= 5.9) {
             pr.observe(o);
@@ -359,4 +361,37 @@ fn boxes_get_the_torque_free_attitude_beyond_the_calibrated_window() {
         );
     }
     assert_eq!(boxes, 4, "two boxes and two panels");
+}
+
+#[test]
+fn the_baselines_forecast_attitude_with_their_model_alone() {
+    // Constant rate (cv-rrt's forecasts): no torque-free box attitude, no precessing rod axis,
+    // whatever the shapes; an online Koopman method gets them.
+    let scene = dkrrt_predictor::eval::perturbed_scene("tumbling-rods", 12, 1.0).unwrap();
+    let rec = record(&scene, SensorConfig::default(), 6.0, 0.01, 6).unwrap();
+    let models = Models::constant_velocity(0.1, 40, rec.mean_motion, 0.05, 3.0);
+    let mut pr = DebrisPredictor::new(models, PredictorConfig::default());
+    assert!(!pr.attitude_physics());
+    let mut buf = ForecastBuffer::for_predictor(&pr);
+    for o in rec.obs.iter().filter(|o| o.t <= 5.9) {
+        pr.observe(o);
+        for (id, shape, _) in &rec.shapes {
+            pr.set_shape(*id, shape);
+        }
+    }
+    let n = pr.forecast(&mut buf);
+    assert!(n >= 4);
+    for j in 0..n {
+        for k in 1..=40 {
+            let x = buf.state(j, k);
+            let q = [x[6], x[7], x[8], x[9]];
+            assert_eq!(buf.attitude(j, k), q);
+            assert_eq!(buf.attitude_radius(j, k), buf.att_radius(j, k));
+            assert_eq!(buf.axis_radius(j, k), buf.att_radius(j, k));
+            // The axis is the model attitude's body z axis.
+            let z = dkrrt_collision::pose::quat_rotate(&q, &[0.0, 0.0, 1.0]);
+            assert!((0..3).all(|i| (buf.axis(j, k)[i] - z[i]).abs() < 1e-12));
+        }
+    }
+    assert!(Method::DeepKoopmanOnline.attitude_physics() && !Method::EdmdPoly.attitude_physics());
 }

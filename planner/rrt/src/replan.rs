@@ -240,6 +240,14 @@ impl Replanner {
         &self.current
     }
 
+    /// Clearance of configuration `q` at plant time `t_s` against the newest forecast,
+    /// inflated as the planner inflates it (forecast bound + margin), m: what the planner
+    /// keeps positive. `None` before the first forecast.
+    pub fn predicted_clearance(&mut self, q: &[f64; NJ], t_s: f64) -> Option<f64> {
+        self.have_forecast
+            .then(|| self.planner.checker.clearance_at(&self.world, q, t_s, 0.0, f64::NEG_INFINITY))
+    }
+
     /// One planning cycle at plant time `now_ns`. `forecast`: the newest forecast, if a new
     /// one arrived (`None` keeps the last). `clock()` reads a monotonic clock in ns (for the
     /// compute time and the deadline; the lockstep passes a real clock too, the budget is

@@ -80,11 +80,37 @@ pub struct Scenario {
     pub episode_time_limit_s: Option<f64>,
 }
 
+/// The planning methods (`planner.method`): `straight` (no avoidance) and the replanning loop on
+/// five kinds of forecast ([`Forecasts`]).
+pub const PLANNER_METHODS: [&str; 6] =
+    ["straight", "rrt-static", "cv-rrt", "edmd-rrt", "dk-rrt", "oracle-rrt"];
+
+/// The fixed EDMD model `edmd-rrt` plans on: the better of the two fixed EDMD dictionaries in
+/// `dkrrt predict-eval` (polynomial: lower attitude error than the RBF one at every horizon
+/// and scene).
+pub const EDMD_BASELINE: &str = "edmd-poly";
+
+/// What a planning method plans against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Forecasts {
+    /// Nothing: the straight motion.
+    None,
+    /// The debris held at their latest estimated poses, no prediction (`rrt-static`, the
+    /// paper's "traditional RRT").
+    Static,
+    /// The debris predictor's forecasts with the method [`Scenario::predictor_method`]
+    /// (`cv-rrt`, `edmd-rrt`, `dk-rrt`).
+    Predictor,
+    /// The true future motion of the debris, zero uncertainty (`oracle-rrt`; in process only).
+    Oracle,
+}
+
 /// `[planner]`: the trajectory source and the replanning loop.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlannerCfg {
-    /// `straight` (a jerk-limited line to the goal, no avoidance) or `dk-rrt`.
+    /// One of [`PLANNER_METHODS`]: `straight` (a jerk-limited line to the goal, no
+    /// avoidance) or the replanning loop on the forecasts [`Scenario::forecasts`] names.
     pub method: String,
     /// Planning cycles per second.
     pub rate_hz: f64,
@@ -349,6 +375,33 @@ impl Checker<'_> {
 }
 
 impl Scenario {
+    /// What the scenario's planning method plans against.
+    pub fn forecasts(&self) -> Forecasts {
+        match self.planner.method.as_str() {
+            "straight" => Forecasts::None,
+            "rrt-static" => Forecasts::Static,
+            "oracle-rrt" => Forecasts::Oracle,
+            _ => Forecasts::Predictor,
+        }
+    }
+
+    /// Whether the trajectory source is the replanning loop (every method but `straight`).
+    pub fn replans(&self) -> bool {
+        self.forecasts() != Forecasts::None
+    }
+
+    /// The debris predictor's method: `constant-velocity` for `cv-rrt`, [`EDMD_BASELINE`] for
+    /// `edmd-rrt`, else `predictor.method` (`dk-rrt`'s deep Koopman by default). `rrt-static`
+    /// keeps the predictor for its filtered poses (track table, gating) and does not forecast
+    /// with it.
+    pub fn predictor_method(&self) -> &str {
+        match self.planner.method.as_str() {
+            "cv-rrt" | "rrt-static" => "constant-velocity",
+            "edmd-rrt" => EDMD_BASELINE,
+            _ => &self.predictor.method,
+        }
+    }
+
     /// The embedded default scenario.
     pub fn default_scenario() -> Scenario {
         Scenario::from_toml_str(DEFAULT_SCENARIO, "<embedded default>")
@@ -567,11 +620,11 @@ impl Scenario {
             return Err(c.fail("predictor.fit", format!("{:?}", p.fit), "must be \"scene\" or \"generic\""));
         }
         let pl = &self.planner;
-        if pl.method != "straight" && pl.method != "dk-rrt" {
+        if !PLANNER_METHODS.contains(&pl.method.as_str()) {
             return Err(c.fail(
                 "planner.method",
                 format!("{:?}", pl.method),
-                "must be \"straight\" or \"dk-rrt\"",
+                format!("must be one of {}", PLANNER_METHODS.join(", ")),
             ));
         }
         if !(1.0..=100.0).contains(&pl.rate_hz) {
