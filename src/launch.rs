@@ -33,6 +33,9 @@ pub struct LaunchOptions {
     pub report: PathBuf,
     pub run: Option<String>,
     pub quiet: bool,
+    /// Draw Fig. 2, Fig. 4 and the clearance plot of the run into this directory (the sim and
+    /// the tracker keep traces for it).
+    pub figures: Option<PathBuf>,
 }
 
 struct Proc {
@@ -51,6 +54,7 @@ fn spawn(
     scenario: &Path,
     stats: &Path,
     planner: bool,
+    trace: Option<&Path>,
 ) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
     if name == "sim" {
@@ -63,6 +67,9 @@ fn spawn(
         cmd.arg(name);
     }
     cmd.arg("--run").arg(run).arg("--scenario").arg(scenario).arg("--stats").arg(stats).stdin(Stdio::null());
+    if let Some(t) = trace {
+        cmd.arg("--trace").arg(t);
+    }
     // SAFETY: prctl is async-signal-safe; the child dies with the launcher.
     unsafe {
         cmd.pre_exec(|| {
@@ -146,6 +153,9 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     if sc.forecasts() == dkrrt_config::Forecasts::Oracle {
         return Err(ORACLE_IN_PROCESS.into());
     }
+    if let Some(f) = &opts.figures {
+        std::fs::create_dir_all(f).map_err(|e| format!("--figures {}: {e}", f.display()))?;
+    }
     let t_start = mono_ns();
     let run = opts.run.unwrap_or_else(|| format!("{}-{}", std::process::id(), t_start % 1_000_000_000));
     let cfg = run_config(&run).map_err(|e| e.to_string())?;
@@ -192,8 +202,10 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     for name in names {
         let stats = dir.join(format!("{name}.json"));
         let _ = std::fs::remove_file(&stats);
-        let child =
-            spawn(&exe, name, &run, &sc_path, &stats, planner).map_err(|e| format!("start {name}: {e}"))?;
+        let trace = (opts.figures.is_some() && (name == "sim" || name == "tracker"))
+            .then(|| dir.join(format!("{name}-trace.json")));
+        let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref())
+            .map_err(|e| format!("start {name}: {e}"))?;
         println!("dkrrt: started {name} pid {}", child.id());
         procs.push(Proc { name, child, stats, exit: None, last_heartbeat_ns: None, heartbeats: 0 });
     }
@@ -390,6 +402,11 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         "predictor_stats": pred,
         "planner_stats": plan,
     });
+    let mut report = report;
+    if let Some(f) = &opts.figures {
+        let files = run_figures(&sc, &dir, f)?;
+        report["figures"] = json!(files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>());
+    }
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     std::fs::write(&opts.report, text).map_err(|e| format!("write report {}: {e}", opts.report.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
@@ -499,4 +516,95 @@ pub fn summary(r: &Value) -> String {
         );
     }
     s
+}
+
+/// Fig. 2, Fig. 4 and the clearance plot of a process-set run, from the traces the tracker
+/// (measured positions and its reference) and the sim (true distance, debris positions) wrote
+/// into the run directory. The planner's predicted clearance is not traced by the processes:
+/// the clearance plot shows the true distance and the margin.
+fn run_figures(sc: &Scenario, run_dir: &Path, out: &Path) -> Result<Vec<PathBuf>, String> {
+    let read = |name: &str| -> Result<Value, String> {
+        let p = run_dir.join(format!("{name}-trace.json"));
+        let t = std::fs::read_to_string(&p).map_err(|e| format!("--figures: {}: {e}", p.display()))?;
+        serde_json::from_str(&t).map_err(|e| format!("--figures: {}: {e}", p.display()))
+    };
+    let (trk, sim) = (read("tracker")?, read("sim")?);
+    let model = sc.load_arm().map_err(|e| e.to_string())?;
+    let arr = |v: &Value| -> Option<[f64; 6]> {
+        let a = v.as_array()?;
+        (a.len() == 6).then(|| std::array::from_fn(|i| a[i].as_f64().unwrap_or(f64::NAN)))
+    };
+    let ee = |q: &[f64; 6]| {
+        let x = model.fk(&dkrrt_model::JVec::from_row_slice(q)).translation.vector;
+        [x[0], x[1], x[2]]
+    };
+    let dist: Vec<(f64, f64)> = sim["distance"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|e| Some((e[0].as_f64()?, e[1].as_f64()?))).collect())
+        .unwrap_or_default();
+    let distance_at = |t: f64| {
+        let i = dist.partition_point(|d| d.0 < t - 1e-9);
+        dist.get(i).filter(|d| (d.0 - t).abs() < 0.02).map(|d| d.1)
+    };
+    let samples: Vec<crate::lockstep::TraceSample> = trk
+        .as_array()
+        .map(|a| a.as_slice())
+        .unwrap_or(&[])
+        .iter()
+        .filter_map(|s| {
+            let t_s = s["t_s"].as_f64()?;
+            let q = arr(&s["q"])?;
+            let q_des = arr(&s["q_des"]);
+            Some(crate::lockstep::TraceSample {
+                t_s,
+                q,
+                qd: [0.0; 6],
+                q_des,
+                qd_des: arr(&s["qd_des"]),
+                qdd_des: arr(&s["qdd_des"]),
+                ee: ee(&q),
+                ee_des: q_des.map(|qd| ee(&qd)),
+                true_distance_m: distance_at(t_s),
+                predicted_clearance_m: None,
+            })
+        })
+        .collect();
+    let debris: Vec<(f64, u32, [f64; 3])> = sim["debris"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|e| {
+                    let p = e[2].as_array()?;
+                    Some((
+                        e[0].as_f64()?,
+                        e[1].as_u64()? as u32,
+                        [p[0].as_f64()?, p[1].as_f64()?, p[2].as_f64()?],
+                    ))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    if samples.is_empty() {
+        return Err("--figures: the tracker traced no state (did the run start?)".into());
+    }
+    let t = crate::figures::EpisodeTrace {
+        scene: match (&sc.episode, sc.has_debris()) {
+            (Some(e), _) => e.scene.clone(),
+            (None, true) => sc.debris.scene.clone(),
+            (None, false) => "no debris".into(),
+        },
+        episode: sc.episode.as_ref().map_or(0, |e| e.index),
+        method: format!("{}, processes", sc.planner.method),
+        samples,
+        debris,
+        v_max: sc.motion.v_max,
+        a_max: sc.motion.a_max,
+        j_max: sc.motion.j_max,
+        margin_m: sc.planner.margin_m,
+    };
+    let mut files = Vec::new();
+    files.extend(crate::figures::fig2(out, &t)?);
+    files.extend(crate::figures::fig4(out, &t)?);
+    files.extend(crate::figures::clearance(out, &t)?);
+    Ok(files)
 }

@@ -41,6 +41,10 @@ struct ProcArgs {
     /// Write this process's statistics as JSON here at exit.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Keep a trace (every 10 ms) and write it as JSON here at exit (sim and tracker; the
+    /// launcher's `--figures` uses it).
+    #[arg(long)]
+    trace: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -55,6 +59,11 @@ enum Cmd {
         /// Run id (default: generated, unique per launch).
         #[arg(long)]
         run: Option<String>,
+        /// Draw the run's figures here: the end effector's desired vs real path with the
+        /// debris (Fig. 2), joint velocity/acceleration/jerk against the limits (Fig. 4), the
+        /// true clearance over time (SVG and PNG).
+        #[arg(long)]
+        figures: Option<PathBuf>,
     },
     /// The plant simulator process: integrates the arm under commanded torques, publishes state at 1 kHz.
     Sim {
@@ -250,9 +259,10 @@ fn scenario(c: &Common) -> Result<Scenario, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let res: Result<bool, String> = (|| match cli.cmd {
-        Cmd::Launch { common, report, run } => {
+        Cmd::Launch { common, report, run, figures } => {
             let sc = scenario(&common)?;
-            let (r, ok) = launch(LaunchOptions { scenario: sc, report: report.clone(), run, quiet: false })?;
+            let (r, ok) =
+                launch(LaunchOptions { scenario: sc, report: report.clone(), run, quiet: false, figures })?;
             println!("{}", summary(&r));
             println!("report: {}", report.display());
             Ok(ok)
@@ -273,12 +283,13 @@ fn main() -> ExitCode {
                     planner: gate_planner,
                 },
                 p.stats.as_deref(),
+                p.trace.as_deref(),
             )
             .map(|_| true)
         }
         Cmd::Tracker(p) => {
             let sc = scenario(&p.common)?;
-            dkrrt_tracker::process::run(&p.run, &sc, p.stats.as_deref()).map(|_| true)
+            dkrrt_tracker::process::run(&p.run, &sc, p.stats.as_deref(), p.trace.as_deref()).map(|_| true)
         }
         Cmd::Goto { p, goal } => {
             let sc = scenario(&p.common)?;

@@ -184,11 +184,26 @@ fn a_link_hitting_debris_fails_the_run_and_is_reported() {
 fn lockstep_run_reaches_the_goal_exactly() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("ls");
-    let out =
-        Command::new(exe()).args(["launch", "--mode", "lockstep", "--report"]).arg(&rp).output().unwrap();
+    let figs = std::env::temp_dir().join(format!("dkrrt-e2e-figs-{}", std::process::id()));
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--report"])
+        .arg(&rp)
+        .arg("--figures")
+        .arg(&figs)
+        .output()
+        .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r = read_report(&rp);
     assert_report_shape(&r);
+    // The run's figures, from the sim's and the tracker's traces, listed in the report.
+    let listed: Vec<&str> = r["figures"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    for f in ["fig2-ee-path", "fig4-joint-profiles", "clearance"] {
+        let png = std::fs::read(figs.join(format!("{f}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{f}.png");
+        assert!(png.len() > 10_000, "{f}.png: {} bytes", png.len());
+        assert!(listed.iter().any(|p| p.ends_with(&format!("{f}.svg"))), "{listed:?}");
+    }
+    let _ = std::fs::remove_dir_all(&figs);
     assert_eq!(r["mode"], "lockstep");
     let dur = num(&r, "/duration_s");
     assert_eq!(num(&r, "/ticks"), (dur * 1000.0).round() + 1.0);

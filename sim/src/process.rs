@@ -57,8 +57,34 @@ pub struct Gate {
 /// trajectory source; `gate.predictor` (lockstep, with debris): also until a
 /// subscriber (the predictor) reads the debris observations, so that none of
 /// them is published to nobody. The launcher sets both.
-pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> Result<SimReport, String> {
+/// The sim's trace (`--trace FILE`; every [`TRACE_TICKS`] ticks): the true smallest
+/// arm–debris distance and every object's true position in the base frame.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct SimTrace {
+    /// `(t_s, distance_m)`.
+    pub distance: Vec<(f64, f64)>,
+    /// `(t_s, id, position)`.
+    pub debris: Vec<(f64, u32, [f64; 3])>,
+}
+
+/// Ticks between trace samples.
+pub const TRACE_TICKS: u64 = 10;
+
+/// Runs the simulator; with `trace`, keeps a [`SimTrace`] (room allocated up front for the
+/// scenario's duration) and writes it there as JSON at exit.
+pub fn run(
+    run: &str,
+    sc: &Scenario,
+    gate: Gate,
+    stats_path: Option<&Path>,
+    trace: Option<&Path>,
+) -> Result<SimReport, String> {
     signals::install();
+    let n_trace = if trace.is_some() { (sc.ticks() / TRACE_TICKS + 16) as usize } else { 0 };
+    let mut tr = SimTrace {
+        distance: Vec::with_capacity(n_trace),
+        debris: Vec::with_capacity(n_trace * (dkrrt_msg::MAX_DEBRIS + 2)),
+    };
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
     let rt = rtsetup::apply_if(
@@ -197,6 +223,20 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
                 None => Ok(()),
             })
             .map_err(|e| e.to_string())?;
+        if n_trace > 0 && k % TRACE_TICKS == 0 && tr.distance.len() < tr.distance.capacity() {
+            if let Some(d) = core.debris.as_ref() {
+                let t = k as f64 * period_ns as f64 * 1e-9;
+                if d.distance_now_m.is_finite() {
+                    tr.distance.push((t, d.distance_now_m));
+                }
+                let out = &mut tr.debris;
+                d.positions(|id, p| {
+                    if out.len() < out.capacity() {
+                        out.push((t, id, p));
+                    }
+                });
+            }
+        }
         if rep.first_contact {
             let c = core.debris.as_ref().and_then(|d| d.stats.first_contact).unwrap();
             eprintln!(
@@ -245,5 +285,9 @@ pub fn run(run: &str, sc: &Scenario, gate: Gate, stats_path: Option<&Path>) -> R
         rt,
     };
     dkrrt_rt::write_stats("sim", stats_path, &report)?;
+    if let Some(p) = trace {
+        std::fs::write(p, serde_json::to_string(&tr).map_err(|e| e.to_string())?)
+            .map_err(|e| format!("sim: --trace {}: {e}", p.display()))?;
+    }
     Ok(report)
 }

@@ -3,6 +3,7 @@
 //! (lockstep). Records wake latency, compute time and state-to-command
 //! latency into preallocated histograms.
 
+use serde::Serialize;
 use std::path::Path;
 
 use dkrrt_config::arm::contract_limits;
@@ -77,8 +78,31 @@ fn record(events: &mut Vec<ModeEvent>, dropped: &mut u64, e: ModeEvent) {
 }
 
 /// Runs the tracker until the plant signals the end of the run, or SIGINT/SIGTERM.
-pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<TrackerReport, String> {
+/// One sample of the tracker's trace (`--trace FILE`; every [`TRACE_TICKS`] plant ticks):
+/// the measured positions and the reference (none while idle).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct TraceSample {
+    pub t_s: f64,
+    pub q: [f64; NJ],
+    pub q_des: Option<[f64; NJ]>,
+    pub qd_des: Option<[f64; NJ]>,
+    pub qdd_des: Option<[f64; NJ]>,
+}
+
+/// Plant ticks between trace samples.
+pub const TRACE_TICKS: u64 = 10;
+
+/// Runs the tracker; with `trace`, keeps a [`TraceSample`] every [`TRACE_TICKS`] plant ticks
+/// (room allocated up front for the scenario's duration) and writes them there as JSON at exit.
+pub fn run(
+    run: &str,
+    sc: &Scenario,
+    stats_path: Option<&Path>,
+    trace: Option<&Path>,
+) -> Result<TrackerReport, String> {
     signals::install();
+    let mut samples: Vec<TraceSample> =
+        Vec::with_capacity(if trace.is_some() { (sc.ticks() / TRACE_TICKS + 16) as usize } else { 0 });
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
     let rt = rtsetup::apply_if(
@@ -172,6 +196,18 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Tracke
         // 3. Control.
         let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
         let out = ctrl.tick(input);
+        let period = (1e9 / sc.run.control_hz).round().max(1.0) as u64;
+        if fresh && samples.len() < samples.capacity() && (state.header.stamp_ns / period) % TRACE_TICKS == 0
+        {
+            let des = ctrl.desired(state.header.stamp_ns);
+            samples.push(TraceSample {
+                t_s: state.header.stamp_ns as f64 * 1e-9,
+                q: state.q,
+                q_des: des.map(|d| d.0),
+                qd_des: des.map(|d| d.1),
+                qdd_des: des.map(|d| d.2),
+            });
+        }
         if let Some(e) = out.event {
             record(&mut events, &mut events_dropped, e);
         }
@@ -247,5 +283,9 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Tracke
         rt,
     };
     dkrrt_rt::write_stats("tracker", stats_path, &report)?;
+    if let Some(p) = trace {
+        std::fs::write(p, serde_json::to_string(&samples).map_err(|e| e.to_string())?)
+            .map_err(|e| format!("tracker: --trace {}: {e}", p.display()))?;
+    }
     Ok(report)
 }
