@@ -235,6 +235,11 @@ enum Cmd {
         /// pose, solved by IK by the sources; reached within 1 cm and 0.02 rad).
         #[arg(long, default_value = "joint", value_parser = ["joint", "pose"])]
         goal: String,
+        /// Train the deep attitude network first (as `dkrrt train`, ~30 s) and plan dk-rrt on
+        /// it, reporting its training time beside the other methods' fitting times (default:
+        /// the shipped network, trained offline).
+        #[arg(long)]
+        train_deep: bool,
     },
 }
 
@@ -344,7 +349,7 @@ fn main() -> ExitCode {
             dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
                 .map(|_| true)
         }
-        Cmd::Study { scenes, size, episodes, methods, seed, json, out, threads, goal } => {
+        Cmd::Study { scenes, size, episodes, methods, seed, json, out, threads, goal, train_deep } => {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
             let episodes = episodes.unwrap_or(match size.as_str() {
@@ -368,6 +373,7 @@ fn main() -> ExitCode {
                 seed,
                 threads,
                 pose_goals: goal == "pose",
+                train_deep,
             };
             let rows_path = match (&out, &json) {
                 (Some(d), _) => Some(d.join("rows.jsonl")),
@@ -377,7 +383,13 @@ fn main() -> ExitCode {
             let t0 = std::time::Instant::now();
             let (rows, fits) = dkrrt::study::run(&opts, rows_path.as_deref(), true)?;
             let wall_s = t0.elapsed().as_secs_f64();
-            let summary = dkrrt::study_report::summarize(&rows, &scenes, &methods, fits, seed);
+            let summary = dkrrt::study_report::summarize(
+                &rows,
+                &scenes,
+                &methods,
+                dkrrt::study::fit_costs(&fits),
+                seed,
+            );
             println!("{}", dkrrt::study::table(&rows, &scenes, &methods));
             println!(
                 "{} episodes x methods in {wall_s:.1} s wall ({threads} threads, seed {seed})",
@@ -413,7 +425,9 @@ fn main() -> ExitCode {
                     })
                     .or_else(|| rows.iter().find(|r| r.error.is_none()));
                 let trace = match pick {
-                    Some(r) => Some(dkrrt::study::trace_episode(&opts, &r.scene, r.episode, &r.method)?),
+                    Some(r) => {
+                        Some(dkrrt::study::trace_episode(&opts, &fits, &r.scene, r.episode, &r.method)?)
+                    }
                     None => None,
                 };
                 let files = dkrrt::figures::study_figures(&figs, &summary, trace.as_ref())?;

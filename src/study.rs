@@ -109,6 +109,9 @@ pub struct StudyOptions {
     pub threads: usize,
     /// Episodes' goals as end-effector poses (`[episode] pose_goal`), else joint goals.
     pub pose_goals: bool,
+    /// Train the deep attitude network first (as `dkrrt train` does, timed) and plan dk-rrt
+    /// on it, instead of the shipped one.
+    pub train_deep: bool,
 }
 
 /// The base scenario of every episode: the embedded default, with the predictor fitted on
@@ -202,11 +205,30 @@ pub struct MethodFit {
     /// Whether the method plans on the model's forecasts (else the fit serves only the
     /// predictor's filtering, and its cost is not the method's).
     pub forecasts_with_model: bool,
+    /// Seconds the deep network's training took in this study (`--train-deep`), for the
+    /// methods that use it.
+    pub train_s: Option<f64>,
+}
+
+/// What each method's models cost, for the summary.
+pub fn fit_costs(fits: &[MethodFit]) -> Vec<crate::study_report::FitCost> {
+    fits.iter()
+        .map(|f| crate::study_report::FitCost {
+            method: f.planner_method.clone(),
+            forecasts: f.predictor_method.clone(),
+            fit_s: if f.forecasts_with_model { f.fit_s } else { 0.0 },
+            train_s: f.train_s,
+        })
+        .collect()
 }
 
 /// Fits every method's models once (methods on the same predictor method share the fit and
 /// its time).
-pub fn fit_methods(base: &Scenario, methods: &[String]) -> Result<Vec<MethodFit>, String> {
+pub fn fit_methods(
+    base: &Scenario,
+    methods: &[String],
+    trained: Option<(&dkrrt_predictor::training::TrainedModels, f64)>,
+) -> Result<Vec<MethodFit>, String> {
     let mut out: Vec<MethodFit> = Vec::new();
     for m in methods {
         let mut sc = base.clone();
@@ -236,18 +258,20 @@ pub fn fit_methods(base: &Scenario, methods: &[String]) -> Result<Vec<MethodFit>
                         fs.predictor.method = fm;
                         fs.planner.method = "dk-rrt".into();
                         let t = std::time::Instant::now();
-                        let models = dkrrt_planner::predict::fit_models(&fs)?;
+                        let models = dkrrt_planner::predict::fit_models_with(&fs, trained.map(|t| t.0))?;
                         (Some(models), t.elapsed().as_secs_f64())
                     }
                 }
             }
         };
+        let deep = models.as_ref().is_some_and(|m| m.method.deep());
         out.push(MethodFit {
             planner_method: m.clone(),
             predictor_method: label,
             models,
             fit_s,
             forecasts_with_model: uses_model,
+            train_s: trained.filter(|_| uses_model && deep).map(|t| t.1),
         });
     }
     Ok(out)
@@ -258,7 +282,7 @@ pub fn run(
     opts: &StudyOptions,
     rows_path: Option<&Path>,
     progress: bool,
-) -> Result<(Vec<Row>, Vec<crate::study_report::FitCost>), String> {
+) -> Result<(Vec<Row>, Vec<MethodFit>), String> {
     for s in &opts.scenes {
         if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) {
             return Err(format!("--scenes: unknown scene {s:?} ({})", dkrrt_debris::SCENE_NAMES.join(", ")));
@@ -270,7 +294,22 @@ pub fn run(
         }
     }
     let base = base_scenario();
-    let fits = fit_methods(&base, &opts.methods)?;
+    let trained = if opts.train_deep {
+        // As `dkrrt train` with its defaults: the same data, the same network.
+        let t = std::time::Instant::now();
+        eprintln!("study: training the deep attitude network (dkrrt train's defaults)...");
+        let m = dkrrt_predictor::training::train_models(
+            &dkrrt_predictor::training::TrainOptions::default(),
+            &mut |_| {},
+        )
+        .map_err(|e| format!("--train-deep: {e}"))?;
+        let s = t.elapsed().as_secs_f64();
+        eprintln!("study: trained in {s:.1} s");
+        Some((m, s))
+    } else {
+        None
+    };
+    let fits = fit_methods(&base, &opts.methods, trained.as_ref().map(|(m, s)| (m, *s)))?;
     let models_of = |m: &str| fits.iter().find(|f| f.planner_method == m).and_then(|f| f.models.as_ref());
     // One job per episode: it is generated once and run with every method.
     let mut jobs = Vec::new();
@@ -362,15 +401,7 @@ pub fn run(
             b.method.as_str(),
         ))
     });
-    let costs = fits
-        .iter()
-        .map(|f| crate::study_report::FitCost {
-            method: f.planner_method.clone(),
-            forecasts: f.predictor_method.clone(),
-            fit_s: if f.forecasts_with_model { f.fit_s } else { 0.0 },
-        })
-        .collect();
-    Ok((rows, costs))
+    Ok((rows, fits))
 }
 
 /// The per-scene table.
@@ -418,16 +449,18 @@ pub fn table(rows: &[Row], scenes: &[String], methods: &[String]) -> String {
 /// models as in the study, so the same outcome.
 pub fn trace_episode(
     opts: &StudyOptions,
+    fits: &[MethodFit],
     scene: &str,
     index: u64,
     method: &str,
 ) -> Result<crate::figures::EpisodeTrace, String> {
     let base = base_scenario();
-    let fits = fit_methods(&base, &[method.to_string()])?;
+    let fit =
+        fits.iter().find(|f| f.planner_method == method).ok_or_else(|| format!("no fit for {method}"))?;
     let (sc, ep) = episode_scenario(&base, scene, index, opts.seed, opts.pose_goals)?;
     let mut sc = sc;
     sc.planner.method = method.to_string();
-    let mut ls = Lockstep::with_models(&sc, fits[0].models.clone())?;
+    let mut ls = Lockstep::with_models(&sc, fit.models.clone())?;
     ls.keep_trace(ep.time_limit_s + 1.0);
     let ticks = (ep.time_limit_s * sc.run.control_hz).round() as u64;
     for _ in 0..ticks {

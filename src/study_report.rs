@@ -68,6 +68,9 @@ pub struct FitCost {
     pub method: String,
     pub forecasts: String,
     pub fit_s: f64,
+    /// The deep network's training in this study (`--train-deep`), s; `None`: not trained
+    /// here (the shipped network, trained offline by `dkrrt train`, or no network).
+    pub train_s: Option<f64>,
 }
 
 /// The study's summary.
@@ -248,9 +251,14 @@ pub fn markdown_tables(s: &Summary) -> String {
         }
     }
     o.push_str("\n### Fitting (training) cost of each method's forecast models\n\n");
-    o.push_str("| method | forecasts | fit at start-up, s |\n|---|---|---|\n");
+    o.push_str("| method | forecasts | fit at start-up, s | deep network training, s |\n|---|---|---|---|\n");
     for f in &s.fits {
-        o.push_str(&format!("| {} | {} | {:.2} |\n", f.method, f.forecasts, f.fit_s));
+        let train = match (f.train_s, f.forecasts.starts_with("deep")) {
+            (Some(t), _) => format!("{t:.1}"),
+            (None, true) => "shipped network (not trained in this run: `--train-deep`)".into(),
+            (None, false) => "–".into(),
+        };
+        o.push_str(&format!("| {} | {} | {:.2} | {} |\n", f.method, f.forecasts, f.fit_s, train));
     }
     o
 }
@@ -386,7 +394,21 @@ mod tests {
         }
         let scenes = vec!["dense".to_string()];
         let methods = vec!["rrt-static".to_string(), "dk-rrt".to_string()];
-        let s = summarize(&rows, &scenes, &methods, Vec::new(), 1);
+        let fits = vec![
+            FitCost {
+                method: "rrt-static".into(),
+                forecasts: "latest estimate, held".into(),
+                fit_s: 0.0,
+                train_s: None,
+            },
+            FitCost {
+                method: "dk-rrt".into(),
+                forecasts: "deep-koopman-online".into(),
+                fit_s: 0.25,
+                train_s: Some(29.4),
+            },
+        ];
+        let s = summarize(&rows, &scenes, &methods, fits, 1);
         assert_eq!(s.cells.len(), 2);
         let dk = s.cells.iter().find(|c| c.method == "dk-rrt").unwrap();
         assert_eq!((dk.episodes, dk.completed, dk.collisions), (20, 19, 0));
@@ -409,5 +431,6 @@ mod tests {
         let md = markdown_tables(&s);
         assert!(md.contains("| dense | dk-rrt | 20 | **95.0 %**"), "{md}");
         assert!(md.contains("| dense | rrt-static | 20 | +45.0 pts"), "{md}");
+        assert!(md.contains("| dk-rrt | deep-koopman-online | 0.25 | 29.4 |"), "{md}");
     }
 }

@@ -156,6 +156,7 @@ fn no_episode_reaches_the_models_the_study_plans_with() {
         seed: 11,
         threads: 1,
         pose_goals: false,
+        train_deep: false,
     };
     let split = dkrrt::study_report::split_text(&opts);
     assert!(

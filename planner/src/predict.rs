@@ -73,6 +73,12 @@ impl ObsCounters {
 /// (seeded, initial states perturbed for named scenes) with the scenario's sensor, and the
 /// method is fitted on the filtered estimates. Allocates; start-up only.
 pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
+    fit_models_with(sc, None)
+}
+
+/// [`fit_models`] with the deep attitude network given (`None`: the scenario's,
+/// [`load_trained`]).
+pub fn fit_models_with(sc: &Scenario, trained: Option<&TrainedModels>) -> Result<Models, String> {
     let method = Method::from_name(sc.predictor_method()).ok_or_else(|| {
         let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
         format!("predictor.method {:?}: unknown (one of {})", sc.predictor_method(), names.join(", "))
@@ -89,8 +95,9 @@ pub fn fit_models(sc: &Scenario) -> Result<Models, String> {
     if ts.n_pairs() < 10 && method.koopman() {
         return Err(format!("predictor: the scene gives too little training data ({} pairs)", ts.n_pairs()));
     }
-    let deep = if method.deep() { Some(load_trained(sc)?) } else { None };
-    Models::fit_with_deep(method, &ts, &fit, deep.as_ref().map(|d| &d.attitude))
+    let loaded = if method.deep() && trained.is_none() { Some(load_trained(sc)?) } else { None };
+    let deep = if method.deep() { trained.or(loaded.as_ref()) } else { None };
+    Models::fit_with_deep(method, &ts, &fit, deep.map(|d| &d.attitude))
         .map_err(|e| format!("predictor: fitting {}: {e}", method.name()))
 }
 
