@@ -395,7 +395,7 @@ impl Lockstep {
         }
         self.prev_q = Some(*q);
         let tick = self.sim.plant.tick();
-        if tick % SAMPLE_TICKS != 0 {
+        if !tick.is_multiple_of(SAMPLE_TICKS) {
             return;
         }
         let ns = tick * self.period_ns;

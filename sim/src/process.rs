@@ -223,7 +223,7 @@ pub fn run(
                 None => Ok(()),
             })
             .map_err(|e| e.to_string())?;
-        if n_trace > 0 && k % TRACE_TICKS == 0 && tr.distance.len() < tr.distance.capacity() {
+        if n_trace > 0 && k.is_multiple_of(TRACE_TICKS) && tr.distance.len() < tr.distance.capacity() {
             if let Some(d) = core.debris.as_ref() {
                 let t = k as f64 * period_ns as f64 * 1e-9;
                 if d.distance_now_m.is_finite() {

@@ -197,7 +197,9 @@ pub fn run(
         let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
         let out = ctrl.tick(input);
         let period = (1e9 / sc.run.control_hz).round().max(1.0) as u64;
-        if fresh && samples.len() < samples.capacity() && (state.header.stamp_ns / period) % TRACE_TICKS == 0
+        if fresh
+            && samples.len() < samples.capacity()
+            && (state.header.stamp_ns / period).is_multiple_of(TRACE_TICKS)
         {
             let des = ctrl.desired(state.header.stamp_ns);
             samples.push(TraceSample {

@@ -40,6 +40,11 @@ fn fonts() {
     });
 }
 
+/// A legend entry: a short line in `style`.
+fn line_key(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], style)
+}
+
 fn err(e: impl std::fmt::Display) -> String {
     e.to_string()
 }
@@ -287,9 +292,7 @@ fn time_on<DB: DrawingBackend>(
                 for (i, seg) in dashed(&s.points, x1 - x0).into_iter().enumerate() {
                     let a = chart.draw_series(LineSeries::new(seg, style)).map_err(err)?;
                     if i == 0 {
-                        a.label(s.name.clone()).legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
-                        });
+                        a.label(s.name.clone()).legend(line_key(style));
                     }
                 }
             } else {
@@ -297,7 +300,7 @@ fn time_on<DB: DrawingBackend>(
                     .draw_series(LineSeries::new(s.points.iter().copied(), style))
                     .map_err(err)?
                     .label(s.name.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
+                    .legend(line_key(style));
             }
         }
         let mut named = Vec::new();
@@ -307,8 +310,7 @@ fn time_on<DB: DrawingBackend>(
                 let a = chart.draw_series(LineSeries::new(seg, RED.stroke_width(1))).map_err(err)?;
                 if i == 0 && !named.contains(&l.name) {
                     named.push(l.name.clone());
-                    a.label(l.name.clone())
-                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED.stroke_width(1)));
+                    a.label(l.name.clone()).legend(line_key(RED.stroke_width(1)));
                 }
             }
         }
@@ -391,12 +393,7 @@ fn paths_on<DB: DrawingBackend>(
                         ))
                         .map_err(err)?;
                     if i == 0 && first {
-                        s.label("debris (true)").legend(|(x, y)| {
-                            PathElement::new(
-                                vec![(x, y), (x + 16, y)],
-                                RGBColor(150, 150, 150).stroke_width(1),
-                            )
-                        });
+                        s.label("debris (true)").legend(line_key(RGBColor(150, 150, 150).stroke_width(1)));
                     }
                     first = false;
                 }
@@ -410,9 +407,7 @@ fn paths_on<DB: DrawingBackend>(
             ))
             .map_err(err)?
             .label("desired")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 16, y)], RGBColor(220, 30, 30).stroke_width(3))
-            });
+            .legend(line_key(RGBColor(220, 30, 30).stroke_width(3)));
         chart
             .draw_series(LineSeries::new(
                 real.iter().map(|p| (p[a], p[b])),
@@ -420,9 +415,7 @@ fn paths_on<DB: DrawingBackend>(
             ))
             .map_err(err)?
             .label("real")
-            .legend(|(x, y)| {
-                PathElement::new(vec![(x, y), (x + 16, y)], RGBColor(20, 160, 60).stroke_width(1))
-            });
+            .legend(line_key(RGBColor(20, 160, 60).stroke_width(1)));
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
