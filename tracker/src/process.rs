@@ -101,6 +101,7 @@ pub fn run(
     trace: Option<&Path>,
 ) -> Result<TrackerReport, String> {
     signals::install();
+    let period = sc.period_ns().max(1);
     let mut samples: Vec<TraceSample> =
         Vec::with_capacity(if trace.is_some() { (sc.ticks() / TRACE_TICKS + 16) as usize } else { 0 });
     let model = sc.load_arm().map_err(|e| e.to_string())?;
@@ -196,7 +197,6 @@ pub fn run(
         // 3. Control.
         let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
         let out = ctrl.tick(input);
-        let period = (1e9 / sc.run.control_hz).round().max(1.0) as u64;
         if fresh
             && samples.len() < samples.capacity()
             && (state.header.stamp_ns / period).is_multiple_of(TRACE_TICKS)
