@@ -204,7 +204,7 @@ enum Cmd {
         /// Comma-separated scenes (default: all four).
         #[arg(long, value_delimiter = ',')]
         scenes: Option<Vec<String>>,
-        /// Study size: episodes per scene small = 3 (a smoke run), medium = 40, full = 100.
+        /// Study size: episodes per scene small = 2 (a smoke run; the tests run it), medium = 40, full = 100.
         #[arg(long, default_value = "medium", value_parser = ["small", "medium", "full"])]
         size: String,
         /// Episodes per scene (overrides --size).
@@ -353,7 +353,7 @@ fn main() -> ExitCode {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
             let episodes = episodes.unwrap_or(match size.as_str() {
-                "small" => 3,
+                "small" => 2,
                 "full" => 100,
                 _ => 40,
             });
