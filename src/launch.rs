@@ -202,7 +202,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     for name in names {
         let stats = dir.join(format!("{name}.json"));
         let _ = std::fs::remove_file(&stats);
-        let trace = (opts.figures.is_some() && (name == "sim" || name == "tracker"))
+        let trace = (opts.figures.is_some() && matches!(name, "sim" | "tracker" | "planner"))
             .then(|| dir.join(format!("{name}-trace.json")));
         let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref())
             .map_err(|e| format!("start {name}: {e}"))?;
@@ -520,8 +520,8 @@ pub fn summary(r: &Value) -> String {
 
 /// Fig. 2, Fig. 4 and the clearance plot of a process-set run, from the traces the tracker
 /// (measured positions and its reference) and the sim (true distance, debris positions) wrote
-/// into the run directory. The planner's predicted clearance is not traced by the processes:
-/// the clearance plot shows the true distance and the margin.
+/// into the run directory, with the planner's predicted clearance per cycle (when the source is
+/// the planner).
 fn run_figures(sc: &Scenario, run_dir: &Path, out: &Path) -> Result<Vec<PathBuf>, String> {
     let read = |name: &str| -> Result<Value, String> {
         let p = run_dir.join(format!("{name}-trace.json"));
@@ -529,6 +529,18 @@ fn run_figures(sc: &Scenario, run_dir: &Path, out: &Path) -> Result<Vec<PathBuf>
         serde_json::from_str(&t).map_err(|e| format!("--figures: {}: {e}", p.display()))
     };
     let (trk, sim) = (read("tracker")?, read("sim")?);
+    let planned: Vec<(f64, f64)> = if sc.replans() {
+        read("planner")?
+            .as_array()
+            .map_or(Vec::new(), |a| a.iter().filter_map(|e| Some((e[0].as_f64()?, e[1].as_f64()?))).collect())
+    } else {
+        Vec::new()
+    };
+    // The newest cycle's prediction at or before `t` (cycles are ≥ 10 ms apart).
+    let predicted_at = |t: f64| {
+        let i = planned.partition_point(|c| c.0 <= t + 1e-9);
+        i.checked_sub(1).map(|i| planned[i]).filter(|c| t - c.0 < 0.25).map(|c| c.1)
+    };
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let arr = |v: &Value| -> Option<[f64; 6]> {
         let a = v.as_array()?;
@@ -565,7 +577,7 @@ fn run_figures(sc: &Scenario, run_dir: &Path, out: &Path) -> Result<Vec<PathBuf>
                 ee: ee(&q),
                 ee_des: q_des.map(|qd| ee(&qd)),
                 true_distance_m: distance_at(t_s),
-                predicted_clearance_m: None,
+                predicted_clearance_m: predicted_at(t_s),
             })
         })
         .collect();

@@ -41,8 +41,8 @@ struct ProcArgs {
     /// Write this process's statistics as JSON here at exit.
     #[arg(long)]
     stats: Option<PathBuf>,
-    /// Keep a trace (every 10 ms) and write it as JSON here at exit (sim and tracker; the
-    /// launcher's `--figures` uses it).
+    /// Keep a trace and write it as JSON here at exit (sim and tracker every 10 ms, the planner
+    /// every cycle; the launcher's `--figures` uses them).
     #[arg(long)]
     trace: Option<PathBuf>,
 }
@@ -275,7 +275,8 @@ fn main() -> ExitCode {
         Cmd::Planner { p, goal } => {
             let sc = scenario(&p.common)?;
             let goal = goal.map(|g| std::array::from_fn(|i| g[i]));
-            dkrrt_planner::planner_process::run(&p.run, &sc, goal, p.stats.as_deref()).map(|_| true)
+            dkrrt_planner::planner_process::run(&p.run, &sc, goal, p.stats.as_deref(), p.trace.as_deref())
+                .map(|_| true)
         }
         Cmd::Sim { p, gate_trajectory, gate_predictor, gate_planner } => {
             let sc = scenario(&p.common)?;

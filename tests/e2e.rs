@@ -203,6 +203,10 @@ fn lockstep_run_reaches_the_goal_exactly() {
         assert!(png.len() > 10_000, "{f}.png: {} bytes", png.len());
         assert!(listed.iter().any(|p| p.ends_with(&format!("{f}.svg"))), "{listed:?}");
     }
+    // The clearance plot carries the planner's per-cycle predicted clearance (traced by the
+    // planner process) beside the sim's true distance.
+    let svg = std::fs::read_to_string(figs.join("clearance.svg")).unwrap();
+    assert!(svg.contains("predicted clearance") && svg.contains("true distance"));
     let _ = std::fs::remove_dir_all(&figs);
     assert_eq!(r["mode"], "lockstep");
     let dur = num(&r, "/duration_s");

@@ -43,7 +43,12 @@ pub fn run(
     sc: &Scenario,
     goal: Option<[f64; NJ]>,
     stats_path: Option<&Path>,
+    trace: Option<&Path>,
 ) -> Result<PlannerReport, String> {
+    // With `trace`: per cycle, the predicted clearance of the arm's configuration (room
+    // allocated up front for the scenario's duration), written as JSON `[[t_s, m], ...]` at exit.
+    let cap = if trace.is_some() { (sc.run.duration_s * sc.planner.rate_hz * 2.0) as usize + 16 } else { 0 };
+    let mut clearance: Vec<(f64, f64)> = Vec::with_capacity(cap);
     signals::install();
     if sc.forecasts() == dkrrt_config::Forecasts::Oracle {
         return Err("planner: planner.method = \"oracle-rrt\" needs the true future of the debris, which only the in-process lockstep has (`dkrrt eval`, `dkrrt study`)".into());
@@ -134,6 +139,12 @@ pub fn run(
             }
             let mut st = d.status;
             status_pub.publish(&mut st).map_err(|e| e.to_string())?;
+            if clearance.len() < clearance.capacity() {
+                let t = state.header.stamp_ns as f64 * 1e-9;
+                if let Some(c) = core.predicted_clearance(&state.q, t) {
+                    clearance.push((t, c));
+                }
+            }
         }
         // Late subscribers (a restarted tracker) get the plan from history.
         traj_pub.update_connections().map_err(|e| e.to_string())?;
@@ -174,5 +185,9 @@ pub fn run(
         stopped_by_signal,
     };
     dkrrt_rt::write_stats("planner", stats_path, &rep)?;
+    if let Some(p) = trace {
+        std::fs::write(p, serde_json::to_string(&clearance).map_err(|e| e.to_string())?)
+            .map_err(|e| format!("planner: --trace {}: {e}", p.display()))?;
+    }
     Ok(rep)
 }
