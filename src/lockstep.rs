@@ -364,7 +364,7 @@ impl Lockstep {
             // The predictor's plant-clock schedule, on the truth.
             let t = self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9;
             if t + 1e-9 >= o.next_due_s {
-                o.next_due_s = (t * o.rate_hz + 1e-9).floor() / o.rate_hz + 1.0 / o.rate_hz;
+                o.next_due_s = dkrrt_planner::predict::next_forecast_due(t + 1e-9, o.rate_hz);
                 if o.table.forecast_into(t, o.steps, o.dt_s, &mut o.forecast) > 0 {
                     o.forecasts += 1;
                     o.fresh = true;

@@ -149,6 +149,12 @@ pub fn generic_scene(seed: u64) -> Scene {
     Scene::random(0x5eed_0000_0000 + seed, 24, &params)
 }
 
+/// The plant-clock forecast grid: the first `k / rate_hz` boundary after `t` (s). One rule for
+/// the predictor core's lockstep cadence and the in-process oracle's.
+pub fn next_forecast_due(t: f64, rate_hz: f64) -> f64 {
+    (t * rate_hz).floor() / rate_hz + 1.0 / rate_hz
+}
+
 /// Predictor + forecast buffer + the frame/message conversions.
 pub struct PredictorCore {
     pred: DebrisPredictor,
@@ -238,7 +244,7 @@ impl PredictorCore {
         if self.newest_t < self.next_due_s {
             return false;
         }
-        self.next_due_s = (self.newest_t * rate_hz).floor() / rate_hz + 1.0 / rate_hz;
+        self.next_due_s = next_forecast_due(self.newest_t, rate_hz);
         true
     }
 
