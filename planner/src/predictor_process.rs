@@ -63,6 +63,8 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     let mut obs_sub = bus.subscriber::<DebrisObservation>().map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut fc_pub = bus.publisher::<DebrisForecast>(Source::Predictor).map_err(|e| e.to_string())?;
+    let mut prog_pub = bus.publisher::<PredictorProgress>(Source::Predictor).map_err(|e| e.to_string())?;
+    let mut prog = <PredictorProgress as Zeroed>::zeroed();
     let mut hb = HeartbeatTx::new(&bus, Source::Predictor, sc.run.heartbeat_hz).map_err(|e| e.to_string())?;
     let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
     let mut state = <RobotState as Zeroed>::zeroed();
@@ -106,9 +108,16 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             first_fc.get_or_insert(t);
             last_fc = t;
         };
+        let mut newest = None::<Header>;
         if realtime {
             obs_sub
-                .for_each_checked(|_| Ok(()), |f| core.observe_frame(f, &lim))
+                .for_each_checked(
+                    |_| Ok(()),
+                    |f| {
+                        newest = Some(f.header);
+                        core.observe_frame(f, &lim)
+                    },
+                )
                 .map_err(|e| e.to_string())?;
             let t0 = mono_ns();
             let n = core.forecast_into(&mut msg);
@@ -121,6 +130,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
                 .for_each_checked(
                     |_| Ok(()),
                     |f| {
+                        newest = Some(f.header);
                         let t0 = mono_ns();
                         let n = core.observe_then_forecast(f, &lim, rate_hz, &mut msg);
                         if n > 0 {
@@ -133,6 +143,14 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         }
         if let Some(e) = publish_err {
             return Err(e);
+        }
+        // After the forecasts the frames made due: how far the predictor has read.
+        if let Some(h) = newest {
+            prog.header.stamp_ns = h.stamp_ns;
+            prog.frame_seq = h.seq;
+            prog.frames = core.counters.frames;
+            prog.forecasts = forecasts;
+            prog_pub.publish(&mut prog).map_err(|e| e.to_string())?;
         }
         core.counters.frames_lost = obs_sub.lost;
         hb.maybe_send(

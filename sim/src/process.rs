@@ -120,6 +120,15 @@ pub fn run(
     let plan_cycle_ns = (1e9 / sc.planner.rate_hz).round() as u64;
     let mut next_plan_ns = 0u64;
     let mut obs_gate = gate.predictor && obs_pub.is_some() && sc.run.mode == Mode::Lockstep;
+    // Lockstep with planner and predictor: before the state of a planner cycle goes out, the
+    // predictor has read every frame published so far (and published what they made due), so
+    // the cycle plans on the forecasts the in-process lockstep would give it.
+    let mut prog_gate = if obs_gate && plan_gate.is_some() {
+        Some(bus.subscriber::<PredictorProgress>().map_err(|e| e.to_string())?)
+    } else {
+        None
+    };
+    let mut prog = <PredictorProgress as Zeroed>::zeroed();
 
     let period_ns = sc.period_ns();
     let total = sc.ticks();
@@ -139,6 +148,30 @@ pub fn run(
         let stop = signals::stop_requested();
         stopped_by_signal |= stop;
         let last = k >= total || stop;
+        let published = obs_pub.as_ref().map_or(0, |p| p.next_seq());
+        if let (false, Some(g)) = (last || published == 0 || k * period_ns < next_plan_ns, prog_gate.as_mut())
+        {
+            let t0 = mono_ns();
+            let mut spins = 0u32;
+            while !(prog.frames > 0 && prog.frame_seq + 1 >= published) {
+                g.latest(&mut prog, &lim).map_err(|e| e.to_string())?;
+                if signals::stop_requested() {
+                    break;
+                }
+                if mono_ns() - t0 > timeout_ns {
+                    return Err(format!(
+                        "sim: lockstep: the predictor has not read observation frame {} at tick {k} within {} s",
+                        published - 1,
+                        timeout_ns / 1_000_000_000
+                    ));
+                }
+                spins += 1;
+                if spins.is_multiple_of(64) {
+                    std::thread::yield_now();
+                }
+                core::hint::spin_loop();
+            }
+        }
         let m = core.plant.measured();
         msg.header.stamp_ns = k * period_ns;
         msg.header.flags =

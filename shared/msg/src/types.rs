@@ -473,6 +473,24 @@ pub struct PlanStatus {
     pub deadline_missed: u32,
 }
 
+/// The predictor's progress through the observation stream: published after every batch of
+/// frames it has consumed (and the forecasts they made due are out). The lockstep sim waits on
+/// it before a planner cycle, so the process set plans on the same forecasts as the in-process
+/// lockstep; tools read it to see how far behind the sensor the predictor is.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::PredictorProgress/1")]
+pub struct PredictorProgress {
+    /// `stamp_ns`: plant time of the newest frame consumed.
+    pub header: Header,
+    /// `header.seq` of the newest observation frame consumed.
+    pub frame_seq: u64,
+    /// Frames consumed so far.
+    pub frames: u64,
+    /// Forecasts published so far.
+    pub forecasts: u64,
+}
+
 /// All-zero value of a payload (every payload is plain numbers, so all-zero
 /// bytes are a valid value). Large payloads are built in place from this.
 pub trait Zeroed: Sized + Copy {
@@ -490,6 +508,7 @@ impl Zeroed for Heartbeat {}
 impl Zeroed for DebrisObservation {}
 impl Zeroed for DebrisForecast {}
 impl Zeroed for PlanStatus {}
+impl Zeroed for PredictorProgress {}
 
 // Compile-time layout checks: a failing assert here means the wire layout changed.
 const _: () = {
@@ -508,6 +527,7 @@ const _: () = {
     assert!(size_of::<ForecastTrack>() == 16 + 56 + 72 * FORECAST_STEPS);
     assert!(size_of::<DebrisForecast>() == 32 + 24 + (72 + 72 * FORECAST_STEPS) * MAX_DEBRIS);
     assert!(size_of::<PlanStatus>() == 32 + 8 * 5 + 4 * 4);
+    assert!(size_of::<PredictorProgress>() == 32 + 3 * 8);
     assert!(align_of::<RobotState>() == 8 && align_of::<TorqueCommand>() == 8);
     assert!(align_of::<Trajectory>() == 8 && align_of::<DebrisForecast>() == 8);
 };

@@ -371,3 +371,18 @@ impl Validate for PlanStatus {
         Ok(())
     }
 }
+
+impl Validate for PredictorProgress {
+    fn validate(&self, _lim: &ContractLimits) -> Result<(), ValidationError> {
+        // Frames are numbered from 0 by their one publisher: more frames consumed than
+        // numbered is impossible.
+        if self.frames > self.frame_seq.saturating_add(1) {
+            return Err(ValidationError::Count {
+                field: "frames",
+                value: self.frames,
+                max: self.frame_seq + 1,
+            });
+        }
+        Ok(())
+    }
+}
