@@ -6,10 +6,18 @@
 //! * Before starting, stale iceoryx2 resources of dead dkrrt nodes of earlier
 //!   runs are removed.
 //! * It waits until every process's node is alive on the bus.
-//! * SIGINT/SIGTERM are forwarded for a graceful stop.
-//! * If one process dies, the others are stopped after a short grace period
-//!   (so the tracker's safe hold and the plant's brakes act and are reported).
+//! * The run id is refused if a node of that run is alive, or if it is malformed; the run's
+//!   files live in a fresh owner-only directory (0700, unpredictable name, never followed
+//!   through a symlink).
+//! * SIGINT/SIGTERM (or the time limit) is a controlled stop: every process gets SIGTERM at
+//!   once; the sim keeps stepping with `FLAG_STOPPING` until the tracker has braked the arm to
+//!   rest, then ends the run; sources and predictor just exit.
+//! * If the sim or the tracker dies, the others are stopped after a short grace period (the
+//!   tracker's safe hold or the plant's brakes act first and are reported). A dead or hung
+//!   goto, planner or predictor fails the run but does not end it: the tracker finishes or
+//!   brakes on what it has (a hung one is killed).
 //! * A process whose heartbeat stops for [`HEARTBEAT_TIMEOUT_NS`] is treated as hung.
+//! * The verdict ([`crate::verdict`]): `ok` only when every check passed.
 
 use std::collections::BTreeSet;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
@@ -25,8 +33,68 @@ use serde_json::{json, Value};
 
 /// A process whose heartbeat is older than this (after its first one) is hung.
 pub const HEARTBEAT_TIMEOUT_NS: u64 = 2_000_000_000;
-/// How long the launcher lets the others react after a process died.
+/// How long the launcher lets the others react after the sim or the tracker died.
 pub const GRACE_NS: u64 = 300_000_000;
+/// How long a controlled stop may take before the launcher kills what is left (the sim's own
+/// stop limit is 15 s of plant time).
+pub const STOP_KILL_NS: u64 = 25_000_000_000;
+
+/// Processes whose death ends the run (the arm cannot be controlled without them).
+fn critical(name: &str) -> bool {
+    matches!(name, "sim" | "tracker")
+}
+
+/// Random hex digits from the kernel (run ids, directory names nobody can guess).
+pub fn random_hex(bytes: usize) -> String {
+    let mut b = vec![0u8; bytes];
+    // SAFETY: getrandom(2) writes at most b.len() bytes into b.
+    let n = unsafe { libc::getrandom(b.as_mut_ptr().cast(), b.len(), 0) };
+    if n != b.len() as isize {
+        // Never expected on Linux; fall back on the clock and pid (still unique per launch).
+        let x = mono_ns() ^ ((std::process::id() as u64) << 32);
+        b.iter_mut().enumerate().for_each(|(i, v)| *v = (x >> ((i % 8) * 8)) as u8);
+    }
+    b.iter().map(|v| format!("{v:02x}")).collect()
+}
+
+/// A fresh owner-only (0700) directory in the temp dir with an unpredictable name; fails
+/// rather than reuse anything already there (no symlink is followed).
+pub fn private_dir(tag: &str) -> Result<PathBuf, String> {
+    use std::os::unix::fs::DirBuilderExt;
+    for _ in 0..8 {
+        let d = std::env::temp_dir().join(format!("dkrrt-{tag}-{}", random_hex(8)));
+        match std::fs::DirBuilder::new().mode(0o700).create(&d) {
+            Ok(()) => return Ok(d),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(format!("create {}: {e}", d.display())),
+        }
+    }
+    Err("could not create a private run directory".into())
+}
+
+/// Checks that `p` can be written (its directory exists and takes files) without leaving
+/// anything behind.
+pub fn check_writable(p: &Path) -> Result<(), String> {
+    let existed = p.exists();
+    std::fs::OpenOptions::new().append(true).create(true).open(p).map_err(|e| e.to_string())?;
+    if !existed {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok(())
+}
+
+/// Writes a new owner-only (0600) file; refuses an existing path (or symlink).
+pub fn write_private(p: &Path, text: &str) -> Result<(), String> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(p)
+        .and_then(|mut f| f.write_all(text.as_bytes()))
+        .map_err(|e| format!("write {}: {e}", p.display()))
+}
 
 pub struct LaunchOptions {
     pub scenario: Scenario,
@@ -36,6 +104,8 @@ pub struct LaunchOptions {
     /// Draw Fig. 2, Fig. 4 and the clearance plot of the run into this directory (the sim and
     /// the tracker keep traces for it).
     pub figures: Option<PathBuf>,
+    /// Record every service of the run into this MCAP file (`dkrrt recorder`).
+    pub record: Option<PathBuf>,
 }
 
 struct Proc {
@@ -45,6 +115,9 @@ struct Proc {
     exit: Option<std::process::ExitStatus>,
     last_heartbeat_ns: Option<u64>,
     heartbeats: u64,
+    /// Restarts so far, and when the next one is due (`supervision`).
+    restarts: u32,
+    respawn_at: Option<u64>,
 }
 
 fn spawn(
@@ -55,6 +128,7 @@ fn spawn(
     stats: &Path,
     planner: bool,
     trace: Option<&Path>,
+    restart: u32,
 ) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
     if name == "sim" {
@@ -70,6 +144,15 @@ fn spawn(
     if let Some(t) = trace {
         cmd.arg("--trace").arg(t);
     }
+    if name == "planner" && restart > 0 {
+        cmd.arg("--restart").arg(restart.to_string());
+    }
+    die_with_parent(&mut cmd);
+    cmd.spawn()
+}
+
+/// The child gets SIGTERM (a controlled stop) when the launcher dies.
+fn die_with_parent(cmd: &mut Command) {
     // SAFETY: prctl is async-signal-safe; the child dies with the launcher.
     unsafe {
         cmd.pre_exec(|| {
@@ -77,7 +160,21 @@ fn spawn(
             Ok(())
         });
     }
-    cmd.spawn()
+}
+
+impl Proc {
+    fn new(name: &'static str, child: Child, stats: PathBuf) -> Proc {
+        Proc {
+            name,
+            child,
+            stats,
+            exit: None,
+            last_heartbeat_ns: None,
+            heartbeats: 0,
+            restarts: 0,
+            respawn_at: None,
+        }
+    }
 }
 
 fn signal(child: &Child, sig: i32) {
@@ -128,6 +225,7 @@ fn status_json(p: &Proc) -> Value {
         "exit_code": code,
         "signal": sig,
         "heartbeats": p.heartbeats,
+        "restarts": p.restarts,
     })
 }
 
@@ -157,14 +255,19 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         std::fs::create_dir_all(f).map_err(|e| format!("--figures {}: {e}", f.display()))?;
     }
     let t_start = mono_ns();
-    let run = opts.run.unwrap_or_else(|| format!("{}-{}", std::process::id(), t_start % 1_000_000_000));
+    let run = opts.run.unwrap_or_else(|| random_hex(8));
     let cfg = run_config(&run).map_err(|e| e.to_string())?;
     let cleaned = remove_stale_everywhere();
     if cleaned > 0 && !opts.quiet {
         println!("dkrrt: removed stale resources of {cleaned} dead node(s) of earlier runs");
     }
-    let dir = std::env::temp_dir().join(format!("dkrrt-{run}"));
-    std::fs::create_dir_all(&dir).map_err(|e| format!("create {}: {e}", dir.display()))?;
+    // A live run id is refused (two launches on one bus would corrupt each other).
+    let (alive, _) = Bus::nodes(&cfg).map_err(|e| e.to_string())?;
+    if !alive.is_empty() {
+        let names: Vec<String> = alive.iter().map(|(n, pid)| format!("{n} (pid {pid})")).collect();
+        return Err(format!("run id {run} is live: {} on its bus; choose another --run", names.join(", ")));
+    }
+    let dir = private_dir(&run)?;
     // Every process gets the exact same, fully resolved scenario.
     let mut resolved = sc.clone();
     if let Some(p) = sc.urdf_path() {
@@ -179,12 +282,12 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     // A resolved threat episode: its generated scene as a file, the scenario as plain data.
     if let Some(scene) = &sc.scene_override {
         let p = dir.join("scene.toml");
-        std::fs::write(&p, scene.to_toml()).map_err(|e| format!("write {}: {e}", p.display()))?;
+        write_private(&p, &scene.to_toml())?;
         resolved.debris.scene = p.display().to_string();
         resolved.episode = None;
     }
     let sc_path = dir.join("scenario.toml");
-    std::fs::write(&sc_path, resolved.to_toml()).map_err(|e| format!("write {}: {e}", sc_path.display()))?;
+    write_private(&sc_path, &resolved.to_toml())?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
 
     let bus = Bus::new(&run, "launcher").map_err(|e| e.to_string())?;
@@ -192,6 +295,17 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let lim = dkrrt_msg::ContractLimits::symmetric(0.0, 0.0, 0.0);
 
     let mut procs: Vec<Proc> = Vec::new();
+    // The recorder first, so it is on the bus when the others start publishing.
+    if let Some(out) = &opts.record {
+        let stats = dir.join("recorder.json");
+        let mut cmd = Command::new(&exe);
+        cmd.arg("recorder").arg("--run").arg(&run).arg("--out").arg(out).arg("--stats").arg(&stats);
+        cmd.stdin(Stdio::null());
+        die_with_parent(&mut cmd);
+        let child = cmd.spawn().map_err(|e| format!("start recorder: {e}"))?;
+        println!("dkrrt: started recorder pid {}", child.id());
+        procs.push(Proc::new("recorder", child, stats));
+    }
     let planner = sc.replans();
     let source: &'static str = if planner { "planner" } else { "goto" };
     let mut names: Vec<&'static str> = vec!["sim"];
@@ -204,10 +318,10 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         let _ = std::fs::remove_file(&stats);
         let trace = (opts.figures.is_some() && matches!(name, "sim" | "tracker" | "planner"))
             .then(|| dir.join(format!("{name}-trace.json")));
-        let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref())
+        let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref(), 0)
             .map_err(|e| format!("start {name}: {e}"))?;
         println!("dkrrt: started {name} pid {}", child.id());
-        procs.push(Proc { name, child, stats, exit: None, last_heartbeat_ns: None, heartbeats: 0 });
+        procs.push(Proc::new(name, child, stats));
     }
 
     let mut failure: Option<String> = None;
@@ -218,9 +332,15 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             Mode::Realtime => ((sc.run.duration_s + 20.0) * 1e9) as u64,
             Mode::Lockstep => ((sc.run.duration_s * 20.0 + 60.0) * 1e9) as u64,
         };
-    let mut stop_sent_ns: Option<u64> = None;
+    // `stop_at`: when the whole set was told to stop (SIGTERM: a controlled stop);
+    // `end_at`: when the run is over for the launcher (the sim ended, or the sim or the
+    // tracker died): the rest get SIGTERM after a grace period.
+    let mut stop_at: Option<u64> = None;
     let mut kill_sent = false;
-    let mut died_at: Option<u64> = None;
+    let mut end_at: Option<u64> = None;
+    let mut rogue: Vec<(String, u32)> = Vec::new();
+    let mut restarts: Vec<Value> = Vec::new();
+    let mut next_node_scan = 0u64;
 
     loop {
         let now = mono_ns();
@@ -234,26 +354,87 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             }
         });
         // Exits.
+        let mut died = false;
         for p in procs.iter_mut().filter(|p| p.exit.is_none()) {
             if let Ok(Some(st)) = p.child.try_wait() {
                 p.exit = Some(st);
-                let clean = st.success();
-                if !clean && failure.is_none() && stop_sent_ns.is_none() {
-                    failure = Some(match st.signal() {
+                if !st.success() && stop_at.is_none() {
+                    died = true;
+                    let what = match st.signal() {
                         Some(s) => format!("process {} died (signal {s})", p.name),
                         None => format!("process {} failed (exit code {})", p.name, st.code().unwrap_or(-1)),
-                    });
-                    died_at = Some(now);
-                    eprintln!("dkrrt: {}", failure.as_ref().unwrap());
+                    };
+                    eprintln!("dkrrt: {what}{}", if critical(p.name) { "" } else { "; the run goes on" });
+                    failure.get_or_insert(what);
+                    if critical(p.name) {
+                        end_at.get_or_insert(now);
+                    } else if sc.supervision.restarts(p.name)
+                        && p.restarts < sc.supervision.max_restarts
+                        && end_at.is_none()
+                    {
+                        let backoff = sc.supervision.backoff_ms * 1e6 * f64::from(1u32 << p.restarts.min(16));
+                        p.respawn_at = Some(now + backoff as u64);
+                    }
                 }
-                if clean && p.name == "sim" && stop_sent_ns.is_none() && died_at.is_none() {
-                    // Normal end of the run: the others follow the end-of-run flag.
-                    died_at = Some(now);
+                if st.success() && p.name == "sim" {
+                    // The end of the run: the others follow the end-of-run flag.
+                    end_at.get_or_insert(now);
                 }
             }
         }
-        if procs.iter().all(|p| p.exit.is_some()) {
+        if died {
+            // The dead node's ports leave the bus, so nobody waits on them (the lockstep sim's
+            // gates see the publisher gone).
+            let _ = Bus::remove_stale(&cfg);
+        }
+        // Restarts due (supervision): the process resumes from the live bus.
+        for p in procs.iter_mut() {
+            if p.respawn_at.is_some_and(|t| now >= t) {
+                p.respawn_at = None;
+                if stop_at.is_some() || end_at.is_some() {
+                    continue;
+                }
+                p.restarts += 1;
+                let stats = dir.join(format!("{}-r{}.json", p.name, p.restarts));
+                let trace = (opts.figures.is_some() && p.name == "planner")
+                    .then(|| dir.join(format!("{}-r{}-trace.json", p.name, p.restarts)));
+                match spawn(&exe, p.name, &run, &sc_path, &stats, planner, trace.as_deref(), p.restarts) {
+                    Ok(child) => {
+                        println!("dkrrt: restarted {} pid {} (restart {})", p.name, child.id(), p.restarts);
+                        restarts.push(json!({
+                            "name": p.name,
+                            "restart": p.restarts,
+                            "t_s": (now - t_start) as f64 * 1e-9,
+                            "old_pid": p.child.id(),
+                            "new_pid": child.id(),
+                        }));
+                        p.child = child;
+                        p.stats = stats;
+                        p.exit = None;
+                        p.last_heartbeat_ns = None;
+                    }
+                    Err(e) => eprintln!("dkrrt: restart {}: {e}", p.name),
+                }
+            }
+        }
+        if procs.iter().all(|p| p.exit.is_some() && p.respawn_at.is_none()) {
             break;
+        }
+        // Nodes on the run's bus that the launcher did not start (a rogue `goto` or `sim` on a
+        // live run id): reported, and the run fails.
+        if ready && now >= next_node_scan {
+            next_node_scan = now + 100_000_000;
+            if let Ok((alive, _)) = Bus::nodes(&cfg) {
+                for (name, pid) in alive {
+                    let ours = pid == std::process::id() || procs.iter().any(|p| p.child.id() == pid);
+                    if !ours && !rogue.iter().any(|r: &(String, u32)| r.1 == pid) {
+                        eprintln!(
+                            "dkrrt: a process this run did not start joined its bus: {name} (pid {pid})"
+                        );
+                        rogue.push((name, pid));
+                    }
+                }
+            }
         }
         if !ready {
             if let Ok((alive, _)) = Bus::nodes(&cfg) {
@@ -264,40 +445,53 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             }
             if !ready && now > ready_deadline && failure.is_none() {
                 failure = Some("processes did not come up within 15 s".into());
-                died_at = Some(now);
+                stop_at.get_or_insert(now);
             }
-        } else if failure.is_none() && stop_sent_ns.is_none() {
+        } else if stop_at.is_none() && end_at.is_none() {
             for p in procs.iter().filter(|p| p.exit.is_none()) {
-                if let Some(t) = p.last_heartbeat_ns {
-                    if now > t + HEARTBEAT_TIMEOUT_NS {
-                        failure = Some(format!("process {} stopped sending heartbeats (hung)", p.name));
-                        died_at = Some(now);
+                if p.last_heartbeat_ns.is_some_and(|t| now > t + HEARTBEAT_TIMEOUT_NS) {
+                    let what = format!("process {} stopped sending heartbeats (hung)", p.name);
+                    eprintln!("dkrrt: {what}");
+                    failure.get_or_insert(what);
+                    // A hung process is killed (it would not act on SIGTERM). A hung sim or
+                    // tracker ends the run (the other one brakes); a hung source or predictor
+                    // does not: the tracker goes on with what it has.
+                    signal(&p.child, libc::SIGKILL);
+                    if critical(p.name) {
+                        end_at.get_or_insert(now);
                     }
                 }
             }
         }
-        if signals::stop_requested() && stop_sent_ns.is_none() && failure.is_none() {
-            failure = Some(format!("stopped by signal {}", signals::stop_signal()));
-            died_at = Some(now);
+        if signals::stop_requested() && stop_at.is_none() {
+            failure.get_or_insert(format!("stopped by signal {} (controlled stop)", signals::stop_signal()));
+            stop_at = Some(now);
         }
-        if now > hard_deadline && failure.is_none() {
-            failure = Some("run exceeded its time limit".into());
-            died_at = Some(now);
+        if now > hard_deadline && stop_at.is_none() {
+            failure.get_or_insert("run exceeded its time limit (controlled stop)".into());
+            stop_at = Some(now);
         }
-        // Stop the rest after the grace period (graceful first, then SIGKILL).
-        if let Some(t) = died_at {
+        if let Some(t) = end_at {
             let grace = if failure.is_some() { GRACE_NS } else { 3_000_000_000 };
-            if stop_sent_ns.is_none() && now > t + grace {
-                for p in procs.iter().filter(|p| p.exit.is_none()) {
-                    signal(&p.child, libc::SIGTERM);
-                }
-                stop_sent_ns = Some(now);
+            if stop_at.is_none() && now > t + grace {
+                stop_at = Some(now);
             }
         }
-        if let Some(t) = stop_sent_ns {
-            if !kill_sent && now > t + 3_000_000_000 {
+        // The controlled stop: SIGTERM to everyone at once (the sim brings the arm to rest
+        // before it ends), SIGKILL for whatever is left long after.
+        if stop_at == Some(now) {
+            for p in procs.iter().filter(|p| p.exit.is_none()) {
+                signal(&p.child, libc::SIGTERM);
+            }
+        }
+        if let Some(t) = stop_at {
+            if !kill_sent && now > t + STOP_KILL_NS {
                 for p in procs.iter().filter(|p| p.exit.is_none()) {
-                    eprintln!("dkrrt: {} ignored SIGTERM; killing it", p.name);
+                    eprintln!(
+                        "dkrrt: {} did not stop within {} s; killing it",
+                        p.name,
+                        STOP_KILL_NS / 1_000_000_000
+                    );
                     signal(&p.child, libc::SIGKILL);
                 }
                 kill_sent = true;
@@ -319,8 +513,24 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         &stats_of("predictor"),
         &stats_of("planner"),
     );
-    let all_clean = procs.iter().all(|p| p.exit.is_some_and(|s| s.success()));
-    // Any arm–debris contact is a collision: the run failed.
+    // The verdict: every check of the scenario's `[checks]`.
+    let unclean: Vec<String> = procs
+        .iter()
+        .filter(|p| !p.exit.is_some_and(|s| s.success()))
+        .map(|p| match p.exit.map(|s| (s.code(), s.signal())) {
+            Some((_, Some(sig))) => format!("{}: signal {sig}", p.name),
+            Some((Some(c), _)) => format!("{}: exit code {c}", p.name),
+            _ => format!("{}: did not exit", p.name),
+        })
+        .collect();
+    let ending = crate::verdict::Ending {
+        failure: failure.clone(),
+        unclean,
+        rogue: rogue.iter().map(|(n, pid)| format!("{n} (pid {pid})")).collect(),
+    };
+    let checks = crate::verdict::checks(&sc, &ending, sim, tr, goto, plan, pred);
+    let failed = crate::verdict::failed(&checks);
+    let ok = failed.is_empty();
     let collision = sim.pointer("/debris/first_contact").filter(|c| !c.is_null()).map(|c| {
         format!(
             "collision: link {} hit debris {} at t = {:.3} s",
@@ -329,21 +539,26 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             c["t_s"].as_f64().unwrap_or(f64::NAN)
         )
     });
-    if let (Some(c), None) = (&collision, &failure) {
-        failure = Some(c.clone());
-    }
-    // The planner's job is the goal: a run that never reached it did not do what was asked.
-    if planner && failure.is_none() && plan.get("goal_reached_s").is_none_or(Value::is_null) {
-        failure = Some("goal not reached".into());
-    }
-    let ok = failure.is_none() && all_clean;
+    // The stop reason: what the supervisor saw first, else the first failed check.
+    let stop_reason = match (&failure, &collision) {
+        (Some(f), _) => f.clone(),
+        (None, Some(c)) => c.clone(),
+        (None, None) => match checks.iter().find(|c| !c.ok) {
+            Some(c) => format!("run completed; check {} failed: {}", c.name, c.detail),
+            None => "run completed".into(),
+        },
+    };
     let lat = |k: &str, full: bool| {
         let keys: &[&str] = if full { &["p50", "p99", "p999", "max"] } else { &["p50", "p99", "max"] };
         pick(tr.get(k).unwrap_or(&Value::Null), keys)
     };
     let report = json!({
         "ok": ok,
-        "stop_reason": failure.clone().unwrap_or_else(|| "run completed".into()),
+        "stop_reason": stop_reason,
+        "failed_checks": failed,
+        "checks": checks,
+        "final_velocity_rad_s": sim.get("final_qd"),
+        "stop": sim.get("stop"),
         "run_id": run,
         "scenario": sc.name,
         "mode": sc.run.mode,
@@ -360,6 +575,11 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "entries": tr.get("safe_hold_entries"),
             "events": tr.get("events"),
             "plant_brake_engagements": sim.pointer("/plant/brake_engagements"),
+        },
+        "joint_limits": {
+            "max_velocity_ratio": sim.pointer("/plant/max_velocity_ratio"),
+            "velocity_limit_ticks": sim.pointer("/plant/velocity_limit_ticks"),
+            "hard_stop_hits": sim.pointer("/plant/limit_hits"),
         },
         "rejected_messages": {
             "tracker": tr.get("rejected"),
@@ -396,6 +616,12 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "goal_reached_s": plan.get("goal_reached_s"),
         }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
+        "rogue_nodes": ending.rogue,
+        "restarts": restarts,
+        "recording": opts.record.as_ref().map(|f| json!({
+            "file": f.display().to_string(),
+            "recorder": stats_of("recorder"),
+        })),
         "sim": sim,
         "tracker": tr,
         "goto": goto,
@@ -403,13 +629,26 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         "planner_stats": plan,
     });
     let mut report = report;
+    // Nothing of the run is lost: a failed figure is noted in the report, a report that cannot
+    // be written is printed instead.
     if let Some(f) = &opts.figures {
-        let files = run_figures(&sc, &dir, f)?;
-        report["figures"] = json!(files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>());
+        match run_figures(&sc, &dir, f) {
+            Ok(files) => {
+                report["figures"] = json!(files.iter().map(|p| p.display().to_string()).collect::<Vec<_>>())
+            }
+            Err(e) => {
+                eprintln!("dkrrt: {e}");
+                report["figures_error"] = json!(e);
+            }
+        }
     }
-    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-    std::fs::write(&opts.report, text).map_err(|e| format!("write report {}: {e}", opts.report.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
+    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    if let Err(e) = std::fs::write(&opts.report, &text) {
+        println!("{}", summary(&report));
+        println!("{text}");
+        return Err(format!("write report {}: {e} (the report is printed above)", opts.report.display()));
+    }
     Ok((report, ok))
 }
 

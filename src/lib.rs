@@ -6,10 +6,13 @@
 //! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`, `dkrrt predictor`), plus
 //! `dkrrt train` / `dkrrt predict-eval` ([`train`]).
 
+pub mod faults;
 pub mod figures;
 pub mod launch;
 pub mod lockstep;
+pub mod mcap_io;
 pub mod plan_cli;
 pub mod study;
 pub mod study_report;
 pub mod train;
+pub mod verdict;

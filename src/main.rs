@@ -59,6 +59,9 @@ enum Cmd {
         /// Run id (default: generated, unique per launch).
         #[arg(long)]
         run: Option<String>,
+        /// Record every service of the run into this MCAP file (a separate recorder process).
+        #[arg(long)]
+        record: Option<PathBuf>,
         /// Draw the run's figures here: the end effector's desired vs real path with the
         /// debris (Fig. 2), joint velocity/acceleration/jerk against the limits (Fig. 4), the
         /// true clearance over time (SVG and PNG).
@@ -85,16 +88,20 @@ enum Cmd {
     Goto {
         #[command(flatten)]
         p: ProcArgs,
-        /// Joint goal in rad, comma separated (default: the scenario's goal).
-        #[arg(long, value_delimiter = ',', num_args = 6)]
+        /// Joint goal in rad: six numbers, comma or space separated (default: the scenario's goal).
+        #[arg(long, value_delimiter = ',', num_args = 1..=6, allow_negative_numbers = true)]
         goal: Option<Vec<f64>>,
     },
     /// The anytime DK-RRT planner: replans against the debris forecasts, publishes spliced trajectories.
     Planner {
         #[command(flatten)]
         p: ProcArgs,
-        /// Joint goal in rad, comma separated (default: the scenario's goal).
-        #[arg(long, value_delimiter = ',', num_args = 6, allow_negative_numbers = true)]
+        /// How many times the launcher has restarted this planner in the run (its trajectory
+        /// ids start at restart × 1 000 000 + 1).
+        #[arg(long, default_value_t = 0)]
+        restart: u32,
+        /// Joint goal in rad: six numbers, comma or space separated (default: the scenario's goal).
+        #[arg(long, value_delimiter = ',', num_args = 1..=6, allow_negative_numbers = true)]
         goal: Option<Vec<f64>>,
     },
     /// Send a goal to the trajectory source of a live run: joint positions or an end-effector pose.
@@ -193,6 +200,42 @@ enum Cmd {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Record every service of a live run into an MCAP file (JSON messages with JSON schemas:
+    /// Foxglove shows them); `dkrrt launch --record FILE` starts it for you.
+    Recorder {
+        /// Run id to record.
+        #[arg(long)]
+        run: String,
+        /// The MCAP file to create (never overwritten).
+        #[arg(long)]
+        out: PathBuf,
+        /// Write the recorder's statistics as JSON here at exit.
+        #[arg(long)]
+        stats: Option<PathBuf>,
+    },
+    /// Republish a recording's arm-side messages (robot state, torque commands, debris
+    /// observations, goals) on a run id, so `dkrrt predictor` and `dkrrt planner` re-run on it.
+    Replay {
+        /// The MCAP file (`dkrrt launch --record`); an interrupted one replays up to its end.
+        file: PathBuf,
+        /// Run id to publish on (start the predictor / planner on it).
+        #[arg(long)]
+        run: String,
+        /// Pace: 1 = as recorded, 4 = four times faster, 0 = as fast as possible.
+        #[arg(long, default_value_t = 1.0)]
+        speed: f64,
+    },
+    /// The fault matrix: kill -9 / SIGSTOP of each process, NaN and out-of-range messages on
+    /// each service, a rogue trajectory source, a full disk for the report; one line per case
+    /// (expected, observed, pass/fail); fails if any case fails (~4 min).
+    Faults {
+        /// Run only the cases whose name contains this text (e.g. "kill", "tracker").
+        #[arg(long)]
+        only: Option<String>,
+        /// Also write the table as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run the same cores in process, in lockstep (deterministic, no IPC); print the result as JSON.
     Eval {
         #[command(flatten)]
@@ -261,22 +304,64 @@ fn scenario(c: &Common) -> Result<Scenario, String> {
     Ok(sc)
 }
 
+/// `--goal`: exactly six finite joint positions.
+fn joint_goal(g: Option<Vec<f64>>) -> Result<Option<[f64; 6]>, String> {
+    let Some(g) = g else { return Ok(None) };
+    if g.len() != 6 {
+        return Err(format!("--goal: {} numbers given; give the six joint positions (rad), e.g. --goal 0.35,-0.2,0.7,0.3,0.2,0.4", g.len()));
+    }
+    if let Some(i) = g.iter().position(|x| !x.is_finite()) {
+        return Err(format!("--goal[{i}] = {}: must be finite", g[i]));
+    }
+    Ok(Some(std::array::from_fn(|i| g[i])))
+}
+
 fn main() -> ExitCode {
+    // A closed pipe (`dkrrt eval | head -1`) ends the process quietly, as for any Unix tool,
+    // instead of a panic in `println!`.
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     let cli = Cli::parse();
     let res: Result<bool, String> = (|| match cli.cmd {
-        Cmd::Launch { common, report, run, figures } => {
+        Cmd::Launch { common, report, run, figures, record } => {
             let sc = scenario(&common)?;
-            let (r, ok) =
-                launch(LaunchOptions { scenario: sc, report: report.clone(), run, quiet: false, figures })?;
+            // Where the report goes is checked before anything starts.
+            dkrrt::launch::check_writable(&report)
+                .map_err(|e| format!("--report {}: {e}", report.display()))?;
+            if let Some(r) = &record {
+                if r.exists() {
+                    return Err(format!(
+                        "--record {}: exists (a recording is never overwritten)",
+                        r.display()
+                    ));
+                }
+                dkrrt::launch::check_writable(r).map_err(|e| format!("--record {}: {e}", r.display()))?;
+            }
+            let (r, ok) = launch(LaunchOptions {
+                scenario: sc,
+                report: report.clone(),
+                run,
+                quiet: false,
+                figures,
+                record,
+            })?;
             println!("{}", summary(&r));
             println!("report: {}", report.display());
             Ok(ok)
         }
-        Cmd::Planner { p, goal } => {
+        Cmd::Planner { p, goal, restart } => {
             let sc = scenario(&p.common)?;
-            let goal = goal.map(|g| std::array::from_fn(|i| g[i]));
-            dkrrt_planner::planner_process::run(&p.run, &sc, goal, p.stats.as_deref(), p.trace.as_deref())
-                .map(|_| true)
+            let goal = joint_goal(goal)?;
+            let first_id = u64::from(restart) * 1_000_000 + 1;
+            dkrrt_planner::planner_process::run(
+                &p.run,
+                &sc,
+                goal,
+                first_id,
+                p.stats.as_deref(),
+                p.trace.as_deref(),
+            )
+            .map(|_| true)
         }
         Cmd::Sim { p, gate_trajectory, gate_predictor, gate_planner } => {
             let sc = scenario(&p.common)?;
@@ -299,11 +384,7 @@ fn main() -> ExitCode {
         }
         Cmd::Goto { p, goal } => {
             let sc = scenario(&p.common)?;
-            let goal = goal.map(|g| {
-                let mut a = [0.0; 6];
-                a.copy_from_slice(&g);
-                a
-            });
+            let goal = joint_goal(goal)?;
             dkrrt_planner::process::run(&p.run, &sc, goal, p.stats.as_deref()).map(|_| true)
         }
         Cmd::Predictor(p) => {
@@ -471,6 +552,28 @@ fn main() -> ExitCode {
                 sc.run.duration_s
             );
             Ok(true)
+        }
+        Cmd::Recorder { run, out, stats } => {
+            let r = dkrrt::mcap_io::record(&run, &out)?;
+            dkrrt_rt::write_stats("recorder", stats.as_deref(), &r)?;
+            eprintln!("recorder: {} messages to {}", r.messages, out.display());
+            Ok(true)
+        }
+        Cmd::Replay { file, run, speed } => {
+            let r = dkrrt::mcap_io::replay(&file, &run, speed)?;
+            println!("{}", serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?);
+            Ok(true)
+        }
+        Cmd::Faults { only, json } => {
+            if let Some(p) = &json {
+                dkrrt::launch::check_writable(p).map_err(|e| format!("--json {}: {e}", p.display()))?;
+            }
+            let rows = dkrrt::faults::run(only.as_deref())?;
+            if let Some(p) = &json {
+                let text = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+                std::fs::write(p, text).map_err(|e| format!("--json {}: {e}", p.display()))?;
+            }
+            Ok(!rows.is_empty() && rows.iter().all(|r| r.pass))
         }
         Cmd::Eval { common } => {
             let sc = scenario(&common)?;

@@ -14,11 +14,7 @@ const MAX_PROBLEM_BYTES: u64 = 64 << 20;
 /// Reads, checks and solves a problem file; `time_limit` overrides the file's.
 pub fn plan(problem: &Path, time_limit: Option<f64>) -> Result<Solution, String> {
     let name = problem.display();
-    let meta = std::fs::metadata(problem).map_err(|e| format!("{name}: {e}"))?;
-    if meta.len() > MAX_PROBLEM_BYTES {
-        return Err(format!("{name}: larger than {MAX_PROBLEM_BYTES} bytes"));
-    }
-    let text = std::fs::read_to_string(problem).map_err(|e| format!("{name}: {e}"))?;
+    let text = dkrrt_io::read_text_capped(problem, MAX_PROBLEM_BYTES).map_err(|e| format!("{name}: {e}"))?;
     let mut p = Problem::from_json(&text).map_err(|e| format!("{name}: {e}"))?;
     if let Some(t) = time_limit {
         p.time_limit_s = t;

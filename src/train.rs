@@ -62,8 +62,9 @@ fn train_recorded(
 ) -> Result<TrainedModels, String> {
     let mut recs = Vec::new();
     for f in files {
-        let r = std::fs::File::open(f).map_err(|e| format!("--observations {}: {e}", f.display()))?;
-        let obs = read_observations(std::io::BufReader::new(r), &f.display().to_string())?;
+        let bytes = dkrrt_io::read_capped(f, dkrrt_io::limits::JSON)
+            .map_err(|e| format!("--observations {}: {e}", f.display()))?;
+        let obs = read_observations(std::io::BufReader::new(&bytes[..]), &f.display().to_string())?;
         eprintln!("dkrrt train: {} observations from {}", obs.len(), f.display());
         recs.push(obs);
     }

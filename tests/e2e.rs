@@ -5,7 +5,7 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde_json::Value;
 
@@ -100,7 +100,8 @@ fn realtime_run_reaches_the_goal_with_a_sane_report() {
     let dur = num(&r, "/duration_s");
     assert!(dur > 20.0 && dur < 40.0, "{dur}");
     assert!(num(&r, "/ticks") > 0.95 * dur * 1000.0, "{}", r["ticks"]);
-    assert!(num(&r, "/tracking_error_rad/rms") < 1e-3, "{}", r["tracking_error_rad"]);
+    // Measured 3e-7–1e-6 rad in real time on a stalling 2-core VM (2.2e-8 in lockstep).
+    assert!(num(&r, "/tracking_error_rad/rms") < 1e-4, "{}", r["tracking_error_rad"]);
     // The planner reached the goal (every joint within 0.01 rad) and the arm holds there.
     assert!(num(&r, "/planner/goal_reached_s") < dur, "{:#}", r["planner"]);
     assert!(num(&r, "/planner/cycles") > 100.0, "{:#}", r["planner"]);
@@ -258,32 +259,62 @@ fn lockstep_run_reaches_the_goal_exactly() {
 }
 
 /// Launches the default run, SIGKILLs process `name` mid-motion (the default trajectory
-/// takes ~4 s) and checks what every crash must give: the launcher stops the rest promptly,
-/// the run fails naming the crash, the victim's signal is reported, and nothing of the run
-/// is left on the bus (the dead node's resources were removed). Returns the report and the
-/// launcher's output after start-up.
-fn kill_mid_run(tag: &str, name: &str) -> (Value, String) {
+/// takes several seconds) and checks what every crash must give: the run fails naming the
+/// crash, the victim's signal is reported, and nothing of the run is left on the bus (the
+/// dead node's resources were removed). Only the death of the sim or the tracker ends the run
+/// early (`ends_run`); a dead source or predictor leaves the tracker to finish or brake on what
+/// it has until the run's end. Returns the report and the launcher's output after start-up.
+fn kill_mid_run(tag: &str, name: &str, ends_run: bool) -> (Value, String) {
     let rp = report_path(tag);
     let (mut child, rest, pids) = start_launch(&["--duration", "10"], &rp);
     std::thread::sleep(Duration::from_millis(1500));
     // SAFETY: kill(2) on the pid the launcher just reported.
     assert_eq!(unsafe { libc::kill(pids[name], libc::SIGKILL) }, 0);
-    let t0 = Instant::now();
     let status = child.wait().unwrap();
     let rest = rest.join().unwrap().join("\n");
-    assert!(t0.elapsed() < Duration::from_secs(15), "launcher stopped the rest promptly");
     assert!(!status.success(), "a crashed process makes the run fail");
     let r = read_report(&rp);
     assert_eq!(r["ok"], false);
     let reason = r["stop_reason"].as_str().unwrap();
     assert!(reason.contains(name) && reason.contains("signal 9"), "{reason}");
-    assert_eq!(proc_of(&r, name)["signal"], 9);
+    assert!(
+        r["failed_checks"].as_array().unwrap().iter().any(|c| c == "supervision"),
+        "{}",
+        r["failed_checks"]
+    );
+    // The victim's end is reported: its signal, or (restarted by the supervisor) the restart
+    // of the killed pid.
+    if proc_of(&r, name)["restarts"].as_u64().unwrap_or(0) > 0 {
+        let rs = r["restarts"].as_array().unwrap();
+        assert!(rs.iter().any(|x| x["name"] == name && x["old_pid"] == pids[name]), "{rs:?}");
+    } else {
+        assert_eq!(proc_of(&r, name)["signal"], 9);
+    }
     assert!(rest.contains(&format!("{name} died")), "summary names the crash: {rest}");
+    // (A dead sim leaves no plant statistics: no duration.)
+    let dur = r["duration_s"].as_f64().unwrap_or(0.0);
+    if ends_run {
+        assert!(dur < 9.0, "the run ended early: {dur} s");
+    } else {
+        // The plant ran to the end of the run (plus the stop phase, if the arm was moving).
+        assert!(dur >= 10.0, "the run went on: {dur} s");
+        assert_eq!(r["sim"]["stopped_by_signal"], false, "{:#}", r["sim"]);
+    }
     let run = r["run_id"].as_str().unwrap();
     let (alive, dead) = dkrrt_msg::bus::Bus::nodes(&dkrrt_msg::bus::run_config(run).unwrap()).unwrap();
     assert!(alive.is_empty() && dead == 0, "left over: {alive:?}, {dead} dead");
     let _ = std::fs::remove_file(rp);
     (r, rest)
+}
+
+/// The arm ended at rest (every joint under 1e-3 rad/s) within its limits.
+fn assert_at_rest_within_limits(r: &Value) {
+    let v = r["final_velocity_rad_s"].as_array().expect("final_velocity_rad_s");
+    assert_eq!(v.len(), 6);
+    let vmax = v.iter().map(|x| x.as_f64().unwrap().abs()).fold(0.0, f64::max);
+    assert!(vmax < 1e-3, "final joint speed {vmax} rad/s: {v:?}");
+    assert!(num(r, "/joint_limits/max_velocity_ratio") <= 1.0, "{:#}", r["joint_limits"]);
+    assert_eq!(num(r, "/joint_limits/hard_stop_hits"), 0.0);
 }
 
 /// The report's entry of process `name`.
@@ -294,7 +325,7 @@ fn proc_of<'a>(r: &'a Value, name: &str) -> &'a Value {
 #[test]
 fn killing_the_sim_puts_the_tracker_in_safe_hold_and_is_reported() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (r, _) = kill_mid_run("kill", "sim");
+    let (r, _) = kill_mid_run("kill", "sim", true);
     // The tracker noticed, braked, and exited cleanly on the launcher's SIGTERM.
     assert_eq!(proc_of(&r, "tracker")["exit_code"], 0, "{}", proc_of(&r, "tracker"));
     assert!(num(&r, "/safe_hold/entries") >= 1.0);
@@ -337,36 +368,54 @@ fn start_launch(
 }
 
 #[test]
-fn killing_the_predictor_fails_the_run_and_leaves_the_arm_safe() {
+fn killing_the_predictor_fails_the_run_but_the_arm_goes_on_to_rest() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (r, rest) = kill_mid_run("kill-pred", "predictor");
-    // The others were stopped by the launcher (SIGTERM, well before the run's 10 s) and
-    // exited cleanly. The arm side (sim or driver) was stopped by the signal, which by the
-    // driver contract publishes a last state with END_OF_RUN and engages the brakes.
+    let (r, rest) = kill_mid_run("kill-pred", "predictor", false);
+    // The others ran to the end of the run and exited cleanly; the planner planned on the
+    // forecasts it had; the arm ended at rest.
     for name in ["sim", "tracker", "planner"] {
         assert_eq!(proc_of(&r, name)["exit_code"], 0, "{}", proc_of(&r, name));
     }
-    assert_eq!(r["sim"]["stopped_by_signal"], true, "{:#}", r["sim"]);
-    assert!(num(&r, "/duration_s") < 9.0);
-    // The report keeps the scenario's method; the summary says there are no statistics.
+    assert_at_rest_within_limits(&r);
+    assert_eq!(num(&r, "/safe_hold/plant_brake_engagements"), 0.0);
+    // The supervisor restarted it (`supervision.predictor = "on-failure"`, the default); the
+    // new one resumed from the live bus and forecast to the end.
+    assert_eq!(r["restarts"][0]["name"], "predictor", "{:#}", r["restarts"]);
+    assert!(rest.contains("restarted predictor"), "{rest}");
     assert_eq!(r["predictor"]["method"], "deep-koopman-online");
-    assert!(r["predictor"]["forecasts"].is_null());
-    assert!(rest.contains("predictor (deep-koopman-online)  no statistics"), "{rest}");
+    assert!(num(&r, "/predictor/forecasts") > 0.0, "{:#}", r["predictor"]);
 }
 
 #[test]
-fn killing_the_planner_fails_the_run_and_leaves_the_arm_safe() {
+fn killing_the_planner_fails_the_run_but_the_tracker_finishes_what_it_has() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let (r, _) = kill_mid_run("kill-plan", "planner");
-    // The tracker kept what it had (the active plan, or the hold) and exited cleanly; the
-    // plant never needed its brakes, and nothing hit the arm.
+    let (r, _) = kill_mid_run("kill-plan", "planner", false);
+    // The tracker kept what it had (the active plan, then the hold) to the end of the run and
+    // exited cleanly; the plant never needed its brakes, and the arm ended at rest.
     for name in ["sim", "tracker", "predictor"] {
         assert_eq!(proc_of(&r, name)["exit_code"], 0, "{}", proc_of(&r, name));
     }
-    assert_eq!(r["debris"]["collision"], false);
+    assert_eq!(r["tracker"]["end_of_run_seen"], true);
+    assert_at_rest_within_limits(&r);
     assert_eq!(num(&r, "/safe_hold/plant_brake_engagements"), 0.0);
     assert_eq!(r["planner"]["method"], "dk-rrt");
-    assert!(r["planner"]["cycles"].is_null(), "a killed planner leaves no statistics");
+    // Restarted (the default policy): the new planner's statistics are the report's.
+    assert_eq!(r["restarts"][0]["name"], "planner", "{:#}", r["restarts"]);
+    assert!(num(&r, "/planner/cycles") > 0.0, "{:#}", r["planner"]);
+    // It planned nothing while the tracker followed the old plan it does not know: no
+    // trajectory of the old planner's ids was taken for a new one, nothing was foreign.
+    assert_eq!(num(&r, "/tracker/foreign_trajectories"), 0.0);
+}
+
+#[test]
+fn killing_the_tracker_brakes_the_plant_to_rest() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let (r, _) = kill_mid_run("kill-trk", "tracker", true);
+    // The plant's watchdog engaged the brakes; the sim's stop brought the arm to rest.
+    assert!(num(&r, "/safe_hold/plant_brake_engagements") >= 1.0, "{:#}", r["safe_hold"]);
+    assert_eq!(proc_of(&r, "sim")["exit_code"], 0);
+    assert_eq!(r["stop"]["at_rest"], true, "{:#}", r["stop"]);
+    assert_at_rest_within_limits(&r);
 }
 
 #[test]
@@ -374,7 +423,7 @@ fn sigint_to_the_launcher_stops_every_process_gracefully() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let rp = report_path("sigint");
     let (mut child, _rest, _) = start_launch(&["--duration", "10"], &rp);
-    std::thread::sleep(Duration::from_millis(800));
+    std::thread::sleep(Duration::from_millis(2500));
     // SAFETY: kill(2) on our own child.
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
     let status = child.wait().unwrap();
@@ -385,6 +434,12 @@ fn sigint_to_the_launcher_stops_every_process_gracefully() {
         assert_eq!(p["exit_code"], 0, "graceful stop of {p}");
     }
     assert!(num(&r, "/duration_s") < 9.0, "stopped early");
+    // A controlled stop: the sim kept stepping until the tracker had braked the arm to rest.
+    assert_eq!(r["stop"]["cause"], "signal", "{:#}", r["stop"]);
+    assert_eq!(r["stop"]["at_rest"], true, "{:#}", r["stop"]);
+    assert_eq!(r["stop"]["brakes_forced"], false, "{:#}", r["stop"]);
+    assert_at_rest_within_limits(&r);
+    assert_eq!(num(&r, "/safe_hold/plant_brake_engagements"), 0.0);
     let _ = std::fs::remove_file(rp);
 }
 
@@ -439,4 +494,177 @@ fn the_process_set_solves_and_reaches_a_scenario_pose_goal() {
     assert_eq!(r["debris"]["collision"], false);
     assert!(r["planner"]["goal_reached_s"].is_number(), "{:#}", r["planner"]);
     assert!(num(&r, "/final_error_rad") < 0.01, "{}", r["final_error_rad"]);
+}
+
+/// Bad command lines fail up front with a clear error, before anything starts.
+#[test]
+fn bad_command_lines_are_refused_up_front() {
+    let run = |args: &[&str]| {
+        let out = Command::new(exe()).args(args).output().unwrap();
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).to_string())
+    };
+    let (code, err) = run(&["launch", "--run=-x"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("run id") && err.contains("starting with a letter"), "{err}");
+    let long = "a".repeat(130);
+    let (code, err) = run(&["launch", "--run", &long]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("64 characters"), "{err}");
+    let (code, err) = run(&["launch", "--duration", "1e11"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("run.duration_s"), "{err}");
+    let (code, err) = run(&["launch", "--report", "/nonexistent/r.json"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--report /nonexistent/r.json"), "{err}");
+    let (code, err) = run(&["launch", "--scenario", "/dev/zero"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("/dev/zero") && err.contains("not a regular file"), "{err}");
+    // `--goal`: the documented comma form and the space form with negative numbers both parse
+    // (a wrong count is refused naming the flag).
+    let (code, err) = run(&["goto", "--goal", "1,2", "--run", "x"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--goal: 2 numbers"), "{err}");
+    for goal in [&["0.35,-0.2,0.7,0.3,0.2,0.4"][..], &["0.35", "-0.2", "0.7", "0.3", "0.2", "0.4"][..]] {
+        let mut args = vec!["goto", "--run", "e2e-goal-parse", "--duration", "1e11", "--goal"];
+        args.extend_from_slice(goal);
+        // Parsed: it fails on the scenario's duration, after the goal.
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(2));
+        assert!(err.contains("run.duration_s") && !err.contains("--goal"), "{err}");
+    }
+}
+
+/// `dkrrt eval | head -1`: a closed pipe ends the process quietly (no panic).
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    let mut child = Command::new(exe())
+        .args(["eval", "--duration", "0.5"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 1];
+    child.stdout.as_mut().unwrap().read_exact(&mut first).unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// A live run id is refused for a second launch; the run's files are private: a fresh 0700
+/// directory with an unpredictable name, the iceoryx2 root owner-only, its /dev/shm files 0600.
+#[test]
+fn a_run_is_private_and_its_id_cannot_be_launched_twice() {
+    use std::os::unix::fs::PermissionsExt;
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let run = format!("e2e-priv-{}", std::process::id());
+    let rp = report_path("priv");
+    let (mut child, _rest, _) = start_launch(&["--run", &run, "--duration", "4"], &rp);
+    let out = Command::new(exe()).args(["launch", "--run", &run, "--duration", "1"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("run id {run} is live")) && err.contains("sim (pid"), "{err}");
+    // No predictable directory; the run's own is 0700.
+    let tmp = std::env::temp_dir();
+    assert!(!tmp.join(format!("dkrrt-{run}")).exists());
+    let dirs: Vec<_> = std::fs::read_dir(&tmp)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&format!("dkrrt-{run}-")))
+        .collect();
+    assert_eq!(dirs.len(), 1, "one run directory");
+    assert_eq!(dirs[0].metadata().unwrap().permissions().mode() & 0o777, 0o700);
+    let root = dkrrt_msg::bus::private_root().unwrap();
+    assert_eq!(std::fs::metadata(&root).unwrap().permissions().mode() & 0o777, 0o700);
+    let shm: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(&format!("dkrrt_{run}_")))
+        .collect();
+    assert!(shm.iter().any(|e| e.file_name().to_string_lossy().ends_with("global_mgmt")), "{shm:?}");
+    for e in &shm {
+        assert_eq!(e.metadata().unwrap().permissions().mode() & 0o077, 0, "{:?} is open to others", e.path());
+    }
+    let status = child.wait().unwrap();
+    let r = read_report(&rp);
+    assert!(status.success() || r["ok"] == false);
+    assert!(
+        r["rogue_nodes"].as_array().unwrap().is_empty(),
+        "the refused launch never joined: {}",
+        r["rogue_nodes"]
+    );
+    let _ = std::fs::remove_file(rp);
+}
+
+/// `launch --record`: every service of the run lands in an MCAP file (a separate recorder
+/// process); `replay` republishes its arm-side messages on another run id.
+#[test]
+fn a_run_is_recorded_to_mcap_and_replayed_on_a_new_run() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let rp = report_path("rec");
+    let file = std::env::temp_dir().join(format!("dkrrt-e2e-{}.mcap", std::process::id()));
+    let _ = std::fs::remove_file(&file);
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--duration", "3", "--record"])
+        .arg(&file)
+        .arg("--report")
+        .arg(&rp)
+        .output()
+        .unwrap();
+    let r = read_report(&rp);
+    assert!(
+        r["failed_checks"].as_array().unwrap().iter().all(|c| c == "goal_reached"),
+        "{}\n{}",
+        r["failed_checks"],
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(proc_of(&r, "recorder")["exit_code"], 0);
+    let (msgs, complete) = dkrrt_recording::read(&file).unwrap();
+    assert!(complete);
+    assert_eq!(msgs.len() as f64, num(&r, "/recording/recorder/messages"));
+    let topics: std::collections::BTreeSet<&str> = msgs.iter().map(|m| m.topic.as_str()).collect();
+    for t in [
+        "robot_state",
+        "torque_command",
+        "trajectory",
+        "health",
+        "debris_observation",
+        "debris_forecast",
+        "plan_status",
+        "predictor_progress",
+    ] {
+        assert!(topics.contains(format!("/dkrrt/{t}").as_str()), "{t} missing: {topics:?}");
+    }
+    // The recorded states are the sim's: they decode, and the last one ends the run.
+    let states: Vec<dkrrt_msg::RobotState> = msgs
+        .iter()
+        .filter(|m| m.topic == "/dkrrt/robot_state")
+        .map(|m| <dkrrt_msg::RobotState as dkrrt_recording::Recordable>::from_json(&m.json).unwrap())
+        .collect();
+    assert!(states.last().unwrap().header.flags & dkrrt_msg::FLAG_END_OF_RUN != 0);
+    // Replay on a new run: a subscriber there sees every recorded state (read or counted lost).
+    let run = format!("e2e-replay-{}", std::process::id());
+    let bus = dkrrt_msg::bus::Bus::new(&run, "listener").unwrap();
+    let mut sub = bus.subscriber::<dkrrt_msg::RobotState>().unwrap();
+    let lim = dkrrt_msg::ContractLimits::symmetric(10.0, 10.0, 1000.0);
+    let (tx, rx) = std::sync::mpsc::channel();
+    let (f2, run2) = (file.clone(), run.clone());
+    std::thread::spawn(move || tx.send(dkrrt::mcap_io::replay(&f2, &run2, 0.0)).unwrap());
+    let mut seen = 0u64;
+    let rep = loop {
+        seen += sub.for_each(&lim, |_| {}).unwrap() as u64;
+        if let Ok(rep) = rx.try_recv() {
+            break rep.unwrap();
+        }
+    };
+    seen += sub.for_each(&lim, |_| {}).unwrap() as u64;
+    assert_eq!(rep.published["/dkrrt/robot_state"], states.len() as u64);
+    assert_eq!(seen + sub.lost, states.len() as u64, "seen {seen}, lost {}", sub.lost);
+    assert!(!rep.interrupted && rep.undecodable == 0);
+    drop(sub);
+    drop(bus);
+    dkrrt_msg::bus::remove_run_leftovers(&run);
+    let _ = std::fs::remove_file(&file);
+    let _ = std::fs::remove_file(rp);
 }

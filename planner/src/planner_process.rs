@@ -42,6 +42,7 @@ pub fn run(
     run: &str,
     sc: &Scenario,
     goal: Option<[f64; NJ]>,
+    first_traj_id: u64,
     stats_path: Option<&Path>,
     trace: Option<&Path>,
 ) -> Result<PlannerReport, String> {
@@ -60,6 +61,7 @@ pub fn run(
         GoalRequest::Pose(p, q) => (None, Some((p, q))),
     };
     let mut core = replanner(sc, model);
+    core.set_first_traj_id(first_traj_id);
     let mut pose_goals_unreachable = 0u64;
     let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
@@ -117,7 +119,9 @@ pub fn run(
         }
         let end = have_state && state.header.flags & FLAG_END_OF_RUN != 0;
         // Realtime: every wake is a cycle; lockstep: the core's plant-clock cadence.
-        let due = have_state && !end && (!lockstep || core.cycle_due(state.header.stamp_ns));
+        // The plant's controlled stop (FLAG_STOPPING): no new plans, the tracker brakes.
+        let stopping = state.header.flags & FLAG_STOPPING != 0;
+        let due = have_state && !end && !stopping && (!lockstep || core.cycle_due(state.header.stamp_ns));
         if let (true, Some(goal)) = (due, goal) {
             let new_fc = fc_sub.latest(&mut fc, &lim).map_err(|e| e.to_string())?;
             forecasts += new_fc as u64;

@@ -102,7 +102,8 @@ pub fn run(
         let fresh = have_state && state.header.seq > last_seq;
         last_seq = state.header.seq;
         let have_cmd = cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;
-        if have_state && goal_known {
+        // The plant's controlled stop (FLAG_STOPPING): nothing new is planned.
+        if have_state && goal_known && state.header.flags & FLAG_STOPPING == 0 {
             // The tracker holds: its newest command is a hold for a recent state.
             let holding = fresh
                 && have_cmd

@@ -65,6 +65,9 @@ struct Cmd {
     tau: JVec,
 }
 
+/// Below this speed an engaged joint brake locks the joint, rad/s.
+pub const BRAKE_LOCK_RAD_S: f64 = 1e-3;
+
 /// Counters of the plant.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct PlantStats {
@@ -81,6 +84,13 @@ pub struct PlantStats {
     pub brake_ticks: u64,
     /// Substeps in which a joint hit its hard stop.
     pub limit_hits: u64,
+    /// Largest true |q̇ᵢ| / the arm's velocity limit over the run (> 1: a limit was exceeded).
+    pub max_velocity_ratio: f64,
+    /// Ticks in which some joint moved faster than its velocity limit.
+    pub velocity_limit_ticks: u64,
+    /// Substeps whose integration gave a non-finite state (the state before it was kept and
+    /// the brakes engaged: a NaN never becomes a state).
+    pub non_finite_steps: u64,
 }
 
 /// The plant. Constructed once; [`Plant::step`] allocates nothing.
@@ -139,6 +149,20 @@ impl Plant {
 
     pub fn brake_engaged(&self) -> bool {
         self.brake
+    }
+
+    /// Engages the joint brakes now (the end of a controlled stop whose controller did not
+    /// bring the arm to rest); commands flowing again release them, as after the watchdog.
+    pub fn engage_brakes(&mut self) {
+        if !self.brake {
+            self.brake = true;
+            self.stats.brake_engagements += 1;
+        }
+    }
+
+    /// Largest true joint speed now, rad/s.
+    pub fn max_speed(&self) -> f64 {
+        self.qd.iter().fold(0.0f64, |m, v| m.max(v.abs()))
     }
 
     /// Offers a command answering state `state_seq`. It becomes eligible at
@@ -238,8 +262,18 @@ impl Plant {
             let k3a = self.accel(&(q + k2v * (h / 2.0)), &k3v, &tau);
             let k4v = qd + k3a * h;
             let k4a = self.accel(&(q + k3v * h), &k4v, &tau);
-            self.q = q + (k1v + k2v * 2.0 + k3v * 2.0 + k4v) * (h / 6.0);
-            self.qd = qd + (k1a + k2a * 2.0 + k3a * 2.0 + k4a) * (h / 6.0);
+            let q_next = q + (k1v + k2v * 2.0 + k3v * 2.0 + k4v) * (h / 6.0);
+            let qd_next = qd + (k1a + k2a * 2.0 + k3a * 2.0 + k4a) * (h / 6.0);
+            if !(q_next.iter().all(|x| x.is_finite()) && qd_next.iter().all(|x| x.is_finite())) {
+                self.stats.non_finite_steps += 1;
+                if !self.brake {
+                    self.brake = true;
+                    self.stats.brake_engagements += 1;
+                }
+                continue;
+            }
+            self.q = q_next;
+            self.qd = qd_next;
             for i in 0..NJ {
                 if self.q[i] < lim.q_min[i] {
                     self.q[i] = lim.q_min[i];
@@ -252,6 +286,23 @@ impl Plant {
                 }
             }
         }
+        // An engaged brake is a friction brake: once a joint has all but stopped, it is
+        // locked (held at rest), not left creeping at the viscous model's tail.
+        if self.brake {
+            for i in 0..NJ {
+                if self.qd[i].abs() < BRAKE_LOCK_RAD_S {
+                    self.qd[i] = 0.0;
+                }
+            }
+        }
+        let mut ratio = 0.0f64;
+        for i in 0..NJ {
+            ratio = ratio.max(self.qd[i].abs() / lim.v_max[i]);
+        }
+        if ratio > 1.0 {
+            self.stats.velocity_limit_ticks += 1;
+        }
+        self.stats.max_velocity_ratio = self.stats.max_velocity_ratio.max(ratio);
         self.tau_applied = if self.brake { self.brake_torque(&self.qd) } else { tau };
         if self.brake {
             self.stats.brake_ticks += 1;

@@ -35,6 +35,8 @@ pub struct SimReport {
     /// Debris world figures (`null` without debris): closest approach, contacts.
     pub debris: Option<DebrisStats>,
     pub stopped_by_signal: bool,
+    /// The controlled stop at the end of the run, if there was one.
+    pub stop: Option<StopReport>,
     pub rt: RtReport,
 }
 
@@ -69,6 +71,36 @@ pub struct SimTrace {
 
 /// Ticks between trace samples.
 pub const TRACE_TICKS: u64 = 10;
+
+/// Lockstep stop phase: a tick waits this long for the tracker's command, then steps without
+/// it, ns.
+pub const STOP_WAIT_NS: u64 = 50_000_000;
+
+/// A joint slower than this is at rest, rad/s.
+pub const REST_SPEED_RAD_S: f64 = 1e-4;
+/// The run ends once the arm has been at rest this many ticks in a row (after a stop
+/// request, or at the end of its duration).
+pub const REST_TICKS: u64 = 50;
+/// A controlled stop that has not brought the arm to rest after this much plant time engages
+/// the joint brakes (and ignores commands from then on), s.
+pub const STOP_BRAKE_AFTER_S: f64 = 5.0;
+/// A controlled stop ends the run after this much plant time whatever the arm does, s.
+pub const STOP_LIMIT_S: f64 = 15.0;
+
+/// Why and how the run's controlled stop went (`null` in the report: no stop phase).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct StopReport {
+    /// `signal` (SIGINT/SIGTERM) or `duration` (the run's duration was over with the arm moving).
+    pub cause: &'static str,
+    /// Plant time the stop began, s.
+    pub t_s: f64,
+    /// Plant time from the stop request to rest (or to the stop limit), s.
+    pub stop_time_s: f64,
+    /// The joint brakes were engaged because the controller had not brought the arm to rest.
+    pub brakes_forced: bool,
+    /// The arm was at rest when the run ended.
+    pub at_rest: bool,
+}
 
 /// Runs the simulator; with `trace`, keeps a [`SimTrace`] (room allocated up front for the
 /// scenario's duration) and writes it there as JSON at exit.
@@ -129,6 +161,7 @@ pub fn run(
         None
     };
     let mut prog = <PredictorProgress as Zeroed>::zeroed();
+    let (mut prog_seen, mut plan_seen) = (false, false);
 
     let period_ns = sc.period_ns();
     let total = sc.ticks();
@@ -140,23 +173,72 @@ pub fn run(
     let timeout_ns = 2_000_000_000u64;
 
     let mut k = 0u64;
+    // The controlled stop: asked for by a signal, or the duration is over with the arm moving.
+    // The state carries FLAG_STOPPING (the tracker brakes to rest, sources stop planning), the
+    // gates are dropped, and the run ends once the arm has been at rest for REST_TICKS.
+    let mut stop: Option<StopReport> = None;
+    let mut stop_k = 0u64;
+    let mut rest_ticks = 0u64;
+    let stop_brake_ticks = (STOP_BRAKE_AFTER_S * sc.run.control_hz) as u64;
+    let stop_limit_ticks = (STOP_LIMIT_S * sc.run.control_hz) as u64;
     loop {
         if sc.run.mode == Mode::Realtime {
-            let w = pacer.wait(signals::stop_requested);
+            let w = pacer.wait(|| stop.is_none() && signals::stop_requested());
             wake.record_ns(w.latency_ns());
         }
-        let stop = signals::stop_requested();
-        stopped_by_signal |= stop;
-        let last = k >= total || stop;
+        rest_ticks = if core.plant.max_speed() < REST_SPEED_RAD_S { rest_ticks + 1 } else { 0 };
+        let signalled = signals::stop_requested();
+        if stop.is_none() && (signalled || (k >= total && rest_ticks < REST_TICKS)) {
+            stopped_by_signal |= signalled;
+            stop_k = k;
+            stop = Some(StopReport {
+                cause: if signalled { "signal" } else { "duration" },
+                t_s: k as f64 / sc.run.control_hz,
+                stop_time_s: 0.0,
+                brakes_forced: false,
+                at_rest: false,
+            });
+            (traj_gate, plan_gate, prog_gate, obs_gate) = (None, None, None, false);
+            if signalled {
+                eprintln!("sim: stop requested: bringing the arm to rest");
+            }
+        }
+        if let Some(st) = stop.as_mut() {
+            let since = k - stop_k;
+            if since >= stop_brake_ticks && !st.brakes_forced && rest_ticks < REST_TICKS {
+                st.brakes_forced = true;
+                core.plant.engage_brakes();
+                eprintln!(
+                    "sim: the arm is not at rest {STOP_BRAKE_AFTER_S} s after the stop: brakes engaged"
+                );
+            }
+            st.stop_time_s = since as f64 / sc.run.control_hz;
+            st.at_rest = rest_ticks >= REST_TICKS;
+        }
+        let last = match &stop {
+            None => k >= total,
+            Some(st) => st.at_rest || k - stop_k >= stop_limit_ticks,
+        };
+        let forced = stop.is_some_and(|s| s.brakes_forced);
         let published = obs_pub.as_ref().map_or(0, |p| p.next_seq());
         if let (false, Some(g)) = (last || published == 0 || k * period_ns < next_plan_ns, prog_gate.as_mut())
         {
             let t0 = mono_ns();
             let mut spins = 0u32;
+            let mut gone = false;
             while !(prog.frames > 0 && prog.frame_seq + 1 >= published) {
                 g.latest(&mut prog, &lim).map_err(|e| e.to_string())?;
                 if signals::stop_requested() {
                     break;
+                }
+                if spins.is_multiple_of(256) {
+                    // A predictor that died (its ports removed by the launcher) is not waited for.
+                    let n = bus.publisher_count::<PredictorProgress>().map_err(|e| e.to_string())?;
+                    prog_seen |= n > 0;
+                    if prog_seen && n == 0 {
+                        gone = true;
+                        break;
+                    }
                 }
                 if mono_ns() - t0 > timeout_ns {
                     return Err(format!(
@@ -171,11 +253,16 @@ pub fn run(
                 }
                 core::hint::spin_loop();
             }
+            if gone {
+                eprintln!("sim: lockstep: the predictor is gone; no longer waiting for it");
+                prog_gate = None;
+            }
         }
         let m = core.plant.measured();
         msg.header.stamp_ns = k * period_ns;
-        msg.header.flags =
-            if m.brake_engaged { FLAG_BRAKE_ENGAGED } else { 0 } | if last { FLAG_END_OF_RUN } else { 0 };
+        msg.header.flags = if m.brake_engaged { FLAG_BRAKE_ENGAGED } else { 0 }
+            | if last { FLAG_END_OF_RUN } else { 0 }
+            | if stop.is_some() { FLAG_STOPPING } else { 0 };
         msg.q = m.q;
         msg.qd = m.qd;
         msg.tau = m.tau;
@@ -184,10 +271,16 @@ pub fn run(
             break;
         }
         let plant = &mut core.plant;
-        let mut offer = |c: &TorqueCommand| plant.offer_command(c.state_seq, &c.tau);
+        // Brakes forced at the end of a stop: commands are read (and counted), not applied.
         match sc.run.mode {
             Mode::Realtime => {
-                cmd_sub.for_each(&lim, &mut offer).map_err(|e| e.to_string())?;
+                cmd_sub
+                    .for_each(&lim, |c| {
+                        if !forced {
+                            plant.offer_command(c.state_seq, &c.tau)
+                        }
+                    })
+                    .map_err(|e| e.to_string())?;
             }
             Mode::Lockstep => {
                 let t0 = mono_ns();
@@ -196,6 +289,16 @@ pub fn run(
                 let stamp = k * period_ns;
                 let mut plan_due = plan_gate.is_some() && stamp >= next_plan_ns;
                 loop {
+                    if plan_due && spins.is_multiple_of(256) {
+                        // A planner that died (its ports removed by the launcher) is not waited for.
+                        let n = bus.publisher_count::<PlanStatus>().map_err(|e| e.to_string())?;
+                        plan_seen |= n > 0;
+                        if plan_seen && n == 0 {
+                            eprintln!("sim: lockstep: the planner is gone; no longer waiting for it");
+                            plan_gate = None;
+                            plan_due = false;
+                        }
+                    }
                     if plan_due {
                         if let Some(g) = plan_gate.as_mut() {
                             if g.latest(&mut plan_status, &lim).map_err(|e| e.to_string())?
@@ -207,7 +310,11 @@ pub fn run(
                         }
                     }
                     cmd_sub
-                        .for_each(&lim, |c| plant.offer_command(c.state_seq, &c.tau))
+                        .for_each(&lim, |c| {
+                            if !forced {
+                                plant.offer_command(c.state_seq, &c.tau)
+                            }
+                        })
                         .map_err(|e| e.to_string())?;
                     if let Some(g) = traj_gate.as_mut() {
                         if g.latest(&mut traj_seen, &lim).map_err(|e| e.to_string())? {
@@ -216,12 +323,22 @@ pub fn run(
                     }
                     let mut gated = k == 0 && traj_gate.is_some();
                     if k == 0 && !gated && obs_gate && spins.is_multiple_of(64) {
+                        // The predictor is reading once its progress publisher is up (it
+                        // subscribes to the observations first); another reader (a recorder)
+                        // does not open the gate.
                         obs_gate =
-                            bus.subscriber_count::<DebrisObservation>().map_err(|e| e.to_string())? == 0;
+                            bus.publisher_count::<PredictorProgress>().map_err(|e| e.to_string())? == 0;
                     }
                     gated |= k == 0 && obs_gate;
                     gated |= plan_due;
-                    if (plant.has_command_for_current() && !gated) || signals::stop_requested() {
+                    if (plant.has_command_for_current() && !gated)
+                        || (signals::stop_requested() && stop.is_none())
+                    {
+                        break;
+                    }
+                    // Stopping: a controller that does not answer within STOP_WAIT_NS is gone
+                    // (the plant's watchdog then brakes).
+                    if stop.is_some() && (forced || mono_ns() - t0 > STOP_WAIT_NS) {
                         break;
                     }
                     if mono_ns() - t0 > limit {
@@ -315,6 +432,7 @@ pub fn run(
         final_qd: qd.into(),
         debris: core.debris.as_ref().map(|d| d.stats),
         stopped_by_signal,
+        stop,
         rt,
     };
     dkrrt_rt::write_stats("sim", stats_path, &report)?;

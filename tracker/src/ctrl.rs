@@ -67,6 +67,8 @@ pub enum Reason {
     Splice,
     /// A queued trajectory did not continue the reference at its `start_ns` (not followed).
     SpliceRejected,
+    /// A controlled stop of the run ([`Tracker::stop`]): brake to rest, then hold.
+    Stop,
 }
 
 /// A mode switch, reported by the tick that made it.
@@ -133,6 +135,8 @@ pub struct CtrlStats {
     /// Trajectories queued for a later `start_ns`, and how many of them took over.
     pub splices_queued: u64,
     pub splices_taken: u64,
+    /// Trajectories offered after a controlled stop (not followed).
+    pub ignored_after_stop: u64,
     pub track: ErrorStats,
 }
 
@@ -154,6 +158,8 @@ pub struct Tracker {
     ticks_since_state: u32,
     prev_tau: JVec,
     tick: u64,
+    /// A controlled stop was asked for: brake to rest, hold, follow nothing new.
+    stopping: bool,
     pub stats: CtrlStats,
 }
 
@@ -173,6 +179,7 @@ impl Tracker {
             ticks_since_state: 0,
             prev_tau: JVec::zeros(),
             tick: 0,
+            stopping: false,
             stats: CtrlStats::default(),
         }
     }
@@ -232,10 +239,37 @@ impl Tracker {
         ev
     }
 
+    /// A controlled stop (the run is ending: a signal, the launcher's shutdown): a moving
+    /// reference brakes to rest within the motion limits and then holds (the same brake
+    /// as a safe hold, not counted as one); a held or idle arm stays held. From now on no
+    /// trajectory is followed. Returns the mode switch, if any.
+    pub fn stop(&mut self) -> Option<ModeEvent> {
+        if self.stopping {
+            return None;
+        }
+        self.stopping = true;
+        self.queued.traj_id = 0;
+        let ns = self.plant_ns();
+        match self.mode {
+            ControllerMode::Track => Some(self.brake_to_rest(Reason::Stop, ns)),
+            _ => None,
+        }
+    }
+
+    /// Whether [`Tracker::stop`] was called.
+    pub fn stopping(&self) -> bool {
+        self.stopping
+    }
+
     /// Enters safe hold: brake from the current reference to rest within the
     /// limits, then hold where it stops.
     fn enter_safe_hold(&mut self, reason: Reason, ns: u64) -> ModeEvent {
         self.stats.safe_hold_entries += 1;
+        self.brake_to_rest(reason, ns)
+    }
+
+    /// Brakes from the current reference to rest within the limits, then holds where it stops.
+    fn brake_to_rest(&mut self, reason: Reason, ns: u64) -> ModeEvent {
         let (p, v, a) = match (self.mode, self.last_state) {
             (ControllerMode::Idle, Some((_, _, q, _))) => (q.into(), [0.0; NJ], [0.0; NJ]),
             _ => self.reference(ns),
@@ -279,6 +313,12 @@ impl Tracker {
     /// in position, velocity and acceleration (within `splice_tol`; at rest, the position may
     /// differ by up to `max_start_jump`), else it is rejected (and a tracked motion brakes).
     pub fn set_trajectory(&mut self, t: &Trajectory) -> Option<ModeEvent> {
+        if self.stopping {
+            if t.traj_id != self.traj.traj_id {
+                self.stats.ignored_after_stop += 1;
+            }
+            return None;
+        }
         if t.traj_id != 0 && (t.traj_id == self.traj.traj_id || t.traj_id == self.queued.traj_id) {
             return None;
         }

@@ -48,6 +48,9 @@ pub struct TrackerReport {
     pub stale_ticks: u64,
     pub trajectories_accepted: u64,
     pub rejected: Rejected,
+    /// Trajectories ignored because they came from a publisher the run did not start (another
+    /// `Source`, or a second publisher of the run's source).
+    pub foreign_trajectories: u64,
     pub events: Vec<ModeEvent>,
     pub events_dropped: u64,
     pub end_of_run_seen: bool,
@@ -88,6 +91,11 @@ pub struct TraceSample {
     pub qd_des: Option<[f64; NJ]>,
     pub qdd_des: Option<[f64; NJ]>,
 }
+
+/// After a stop request: no state for this long means the plant is gone, ns.
+pub const SIM_GONE_NS: u64 = 1_000_000_000;
+/// After a stop request: the tracker answers the plant at most this long, ns.
+pub const STOP_LIMIT_NS: u64 = 30_000_000_000;
 
 /// Plant ticks between trace samples.
 pub const TRACE_TICKS: u64 = 10;
@@ -134,13 +142,21 @@ pub fn run(
     let mut end_of_run_seen = false;
     let mut stopped_by_signal = false;
     let mut traj_rejected_seen = 0u64;
+    let expected_source = if sc.replans() { Source::Planner } else { Source::TrajectorySource };
+    let mut source_lock: Option<u128> = None;
+    let mut foreign_trajectories = 0u64;
 
+    // A signal is a controlled stop: brake to rest, hold, and keep answering the plant until
+    // it ends the run (its END_OF_RUN state) or is gone.
+    let mut stop_at: Option<u64> = None;
+    let mut last_fresh_ns = mono_ns();
     loop {
-        // 1. Wait for this tick's state.
+        // 1. Wait for this tick's state (a first stop request cuts the wait short).
         let mut fresh = false;
+        let interrupt = || stop_at.is_none() && signals::stop_requested();
         match sc.run.mode {
             Mode::Realtime => {
-                let w = pacer.wait(signals::stop_requested);
+                let w = pacer.wait(interrupt);
                 wake.record_ns(w.latency_ns());
                 let until = w.deadline_ns + wait_ns;
                 loop {
@@ -149,7 +165,7 @@ pub fn run(
                     {
                         fresh = true;
                     }
-                    if fresh || mono_ns() >= until || signals::stop_requested() {
+                    if fresh || mono_ns() >= until || interrupt() {
                         break;
                     }
                     core::hint::spin_loop();
@@ -164,7 +180,7 @@ pub fn run(
                         fresh = true;
                         break;
                     }
-                    if signals::stop_requested() {
+                    if interrupt() || (stop_at.is_some() && mono_ns() > last_fresh_ns + SIM_GONE_NS) {
                         break;
                     }
                     spins += 1;
@@ -175,15 +191,56 @@ pub fn run(
                 }
             }
         }
-        if signals::stop_requested() {
-            stopped_by_signal = true;
-            break;
+        let now = mono_ns();
+        if fresh {
+            last_fresh_ns = now;
+        }
+        // A stop: our own signal, or the plant's (FLAG_STOPPING in its state).
+        let plant_stops = fresh && state.header.flags & FLAG_STOPPING != 0;
+        if stop_at.is_none() && (signals::stop_requested() || plant_stops) {
+            stop_at = Some(now);
+            stopped_by_signal = signals::stop_requested();
+            if let Some(e) = ctrl.stop() {
+                record(&mut events, &mut events_dropped, e);
+            }
+            if last_seq.is_none() {
+                break; // never controlled the arm: nothing to bring to rest
+            }
+        }
+        if let Some(t) = stop_at {
+            // The plant is gone (no state for a while), or it never ends: stop answering.
+            if now > last_fresh_ns + SIM_GONE_NS || now > t + STOP_LIMIT_NS {
+                break;
+            }
         }
         let t_compute = mono_ns();
 
-        // 2. New trajectory?
+        // 2. New trajectory? Only from the run's own source: the `Source` the scenario's
+        // method publishes with, and the first publisher of it (a rogue `goto` on the run is
+        // ignored and counted).
         if traj_sub.latest(&mut traj, &lim).map_err(|e| e.to_string())? {
-            if let Some(e) = ctrl.set_trajectory(&traj) {
+            let mut ours = traj.header.source == expected_source as u32
+                && *source_lock.get_or_insert(traj_sub.origin) == traj_sub.origin;
+            if !ours && traj.header.source == expected_source as u32 {
+                // A second publisher of the run's source: the restarted source (the one we
+                // followed is gone from the service) takes over; a rogue one (ours is still
+                // there) does not.
+                let gone = source_lock
+                    .is_some_and(|l| !bus.publisher_ids::<Trajectory>().is_ok_and(|ids| ids.contains(&l)));
+                if gone {
+                    source_lock = Some(traj_sub.origin);
+                    ours = true;
+                }
+            }
+            if !ours {
+                foreign_trajectories += 1;
+                if foreign_trajectories == 1 {
+                    eprintln!(
+                        "tracker: ignoring a trajectory from a publisher this run did not start (source {})",
+                        traj.header.source
+                    );
+                }
+            } else if let Some(e) = ctrl.set_trajectory(&traj) {
                 record(&mut events, &mut events_dropped, e);
             }
         }
@@ -278,6 +335,7 @@ pub fn run(
         stale_ticks: ctrl.stats.stale_ticks,
         trajectories_accepted: ctrl.stats.trajectories_accepted,
         rejected: Rejected { state: state_sub.rejected, trajectory: traj_sub.rejected },
+        foreign_trajectories,
         events,
         events_dropped,
         end_of_run_seen,

@@ -299,3 +299,56 @@ fn a_splice_that_does_not_continue_the_reference_is_rejected_and_the_arm_brakes(
     assert!((0..NJ).all(|j| (q[j] - on_old[j]).abs() < 0.05), "{q:?} vs {on_old:?}");
     assert!((0..NJ).any(|j| (q[j] - goal[j]).abs() > 0.05));
 }
+
+#[test]
+fn a_controlled_stop_brakes_to_rest_within_the_limits_and_follows_nothing_after() {
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true); // mid-motion
+    }
+    let (_, qd0) = l.plant.true_state();
+    assert!(qd0.amax() > 0.01, "moving when the stop comes: {qd0}");
+    let e = l.ctrl.stop().expect("a tracked motion brakes");
+    assert_eq!((e.from, e.to, e.reason), (ControllerMode::Track, ControllerMode::Brake, Reason::Stop));
+    assert!(l.ctrl.stop().is_none(), "a second stop request changes nothing");
+    assert_eq!(l.ctrl.stats.safe_hold_entries, 0, "a controlled stop is not a safe hold");
+    // The brake's reference respects the motion limits (velocity, acceleration, jerk), and
+    // the arm follows it to rest.
+    let lim = l.cfg.limits;
+    let mut prev: Option<[f64; NJ]> = None;
+    let mut prev_a: Option<[f64; NJ]> = None;
+    let mut done = None;
+    for k in 0..3000u64 {
+        let ns = l.plant.tick() * 1_000_000;
+        let (_, v, a) = l.ctrl.desired(ns).unwrap();
+        for i in 0..NJ {
+            assert!(v[i].abs() <= lim.v_max[i] + 1e-9, "v[{i}] = {}", v[i]);
+            assert!(a[i].abs() <= lim.a_max[i] + 1e-9, "a[{i}] = {}", a[i]);
+            if let Some(pa) = prev_a {
+                let j = (a[i] - pa[i]) / 1e-3;
+                assert!(j.abs() <= lim.j_max[i] * (1.0 + 1e-6) + 1e-6, "jerk[{i}] = {j}");
+            }
+        }
+        prev_a = Some(a);
+        prev = Some(v);
+        // A valid new trajectory offered during the stop is not followed.
+        if k == 100 {
+            let mut t = l.traj.clone();
+            t.traj_id += 100;
+            assert!(l.ctrl.set_trajectory(&t).is_none());
+        }
+        if let Some(e) = l.tick(true).event {
+            assert_eq!(e.reason, Reason::BrakeComplete);
+            done = Some(k);
+        }
+    }
+    let _ = prev;
+    assert!(done.is_some(), "the brake ended");
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
+    assert_eq!(l.ctrl.stats.ignored_after_stop, 1);
+    assert!(l.ctrl.stopping());
+    let (_, qd) = l.plant.true_state();
+    assert!(qd.amax() < 1e-6, "at rest: {qd}");
+}

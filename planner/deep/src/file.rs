@@ -223,12 +223,16 @@ pub fn save_models(path: &Path, models: &[(&str, &DeepKoopman)]) -> std::io::Res
 
 /// Read all models of a file.
 pub fn load_models(path: &Path) -> Result<Vec<(String, DeepKoopman)>, ModelFileError> {
-    from_bytes(&std::fs::read(path)?)
+    from_bytes(&read(path)?)
+}
+
+fn read(path: &Path) -> std::io::Result<Vec<u8>> {
+    Ok(dkrrt_io::read_capped(path, dkrrt_io::limits::MODEL)?)
 }
 
 /// Read one named model and check its state dimension.
 pub fn load_model(path: &Path, name: &str, expected_n: usize) -> Result<DeepKoopman, ModelFileError> {
-    select(from_bytes(&std::fs::read(path)?)?, name, expected_n)
+    select(from_bytes(&read(path)?)?, name, expected_n)
 }
 
 /// Pick the model `name` from a loaded list and check that its state dimension is `expected_n`.

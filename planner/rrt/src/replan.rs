@@ -217,6 +217,12 @@ impl Replanner {
         true
     }
 
+    /// Numbers this planner's trajectories from `first` on (a restarted planner process starts
+    /// past its predecessors' ids, so the tracker never takes a new plan for an old one).
+    pub fn set_first_traj_id(&mut self, first: u64) {
+        self.next_id = first.max(1);
+    }
+
     /// The run so far, for reports.
     pub fn summary(&self, method: &str) -> Summary {
         let s = &self.stats;

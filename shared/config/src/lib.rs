@@ -20,7 +20,7 @@ pub const DEFAULT_SCENARIO: &str = include_str!("../scenarios/default.toml");
 
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("cannot read scenario {path}: {source}")]
+    #[error("cannot read scenario {}: {source}", dkrrt_io::printable(&path.display().to_string()))]
     Io { path: PathBuf, source: std::io::Error },
     #[error("scenario {origin}: {message}")]
     Parse { origin: String, message: String },
@@ -63,6 +63,12 @@ pub struct Scenario {
     /// The trajectory source: `straight` (`dkrrt goto`) or the `dk-rrt` planner.
     #[serde(default)]
     pub planner: PlannerCfg,
+    /// What a run must achieve to be reported `ok` (`dkrrt launch`).
+    #[serde(default)]
+    pub checks: ChecksCfg,
+    /// Restart policies of the processes that may restart mid-run (`dkrrt launch`).
+    #[serde(default)]
+    pub supervision: SupervisionCfg,
     /// A threat episode (generated start, goal and debris aimed at the straight motion)
     /// replacing `sim.initial_q`, `goal.q` and the debris scene; resolved by the consumer
     /// (`dkrrt_episodes::resolve`) into the fields below.
@@ -78,6 +84,9 @@ pub struct Scenario {
     /// The resolved episode's time limit, s.
     #[serde(skip)]
     pub episode_time_limit_s: Option<f64>,
+    /// The file the scenario was read from (not in the file): errors name it.
+    #[serde(skip)]
+    pub origin: Option<String>,
 }
 
 /// The planning methods (`planner.method`): `straight` (no avoidance) and the replanning loop on
@@ -147,6 +156,68 @@ impl Default for PlannerCfg {
     }
 }
 
+/// `[checks]`: the run's verdict. A run is `ok` only if the goal was reached within
+/// `goal_tolerance_rad`, nothing collided, no joint exceeded its position or velocity limit,
+/// every process exited cleanly, and rejected messages and safe holds stayed within these
+/// bounds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChecksCfg {
+    /// Largest final joint error against the goal of the followed trajectory, rad.
+    pub goal_tolerance_rad: f64,
+    /// Messages any process may reject (invalid by the message contract) in one run.
+    pub max_rejected_messages: u64,
+    /// Safe holds (the tracker braking on a stale state or a rejected trajectory) in one run.
+    /// A machine that stalls its real-time threads causes some: the default (20) is sized for
+    /// a 2-core VM, where the default run measured 2–11; on a real-time kernel set 0.
+    pub max_safe_holds: u64,
+}
+
+impl Default for ChecksCfg {
+    fn default() -> Self {
+        ChecksCfg { goal_tolerance_rad: 0.01, max_rejected_messages: 0, max_safe_holds: 20 }
+    }
+}
+
+/// Restart policies (`supervision.predictor`, `supervision.planner`).
+pub const RESTART_POLICIES: [&str; 2] = ["never", "on-failure"];
+
+/// `[supervision]`: what the launcher does when the predictor or the planner dies or hangs.
+/// `on-failure`: start it again after `backoff_ms` (doubled per restart), at most
+/// `max_restarts` times per process; it resumes from the live bus (the planner plans nothing
+/// while the tracker follows a plan it does not know, so the tracker keeps that trajectory).
+/// The sim and the tracker never restart mid-motion; goto never restarts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SupervisionCfg {
+    pub predictor: String,
+    pub planner: String,
+    pub max_restarts: u32,
+    pub backoff_ms: f64,
+}
+
+impl Default for SupervisionCfg {
+    fn default() -> Self {
+        SupervisionCfg {
+            predictor: "on-failure".into(),
+            planner: "on-failure".into(),
+            max_restarts: 3,
+            backoff_ms: 200.0,
+        }
+    }
+}
+
+impl SupervisionCfg {
+    /// Whether process `name` restarts after a failure.
+    pub fn restarts(&self, name: &str) -> bool {
+        match name {
+            "predictor" => self.predictor == "on-failure",
+            "planner" => self.planner == "on-failure",
+            _ => false,
+        }
+    }
+}
+
 /// `[episode]`: a generated threat episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -169,6 +240,7 @@ pub struct EpisodeCfg {
 #[serde(deny_unknown_fields)]
 pub struct RobotCfg {
     pub urdf: String,
+    #[serde(deserialize_with = "exact::array")]
     pub gravity: [f64; 3],
 }
 
@@ -184,15 +256,20 @@ pub struct RunCfg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionCfg {
+    #[serde(deserialize_with = "exact::array")]
     pub v_max: [f64; NJ],
+    #[serde(deserialize_with = "exact::array")]
     pub a_max: [f64; NJ],
+    #[serde(deserialize_with = "exact::array")]
     pub j_max: [f64; NJ],
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrackerCfg {
+    #[serde(deserialize_with = "exact::array")]
     pub kp: [f64; NJ],
+    #[serde(deserialize_with = "exact::array")]
     pub kd: [f64; NJ],
     pub stale_ticks: u32,
     pub phase_us: u64,
@@ -206,6 +283,7 @@ pub struct TrackerCfg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SimCfg {
+    #[serde(deserialize_with = "exact::array")]
     pub initial_q: [f64; NJ],
     pub substeps: u32,
     pub noise_q_std: f64,
@@ -223,13 +301,13 @@ pub struct SimCfg {
 #[serde(deny_unknown_fields)]
 pub struct GoalCfg {
     /// Joint goal, rad (exactly one of `q` and `pose`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exact::opt_array", skip_serializing_if = "Option::is_none")]
     pub q: Option<[f64; NJ]>,
     /// End-effector pose goal in the arm's base frame: `[x, y, z, qw, qx, qy, qz]` (m; a unit
     /// quaternion, normalised on use). The sources turn it into a joint goal by IK from where
     /// the arm is when they start (the planner: the solution clear of the forecast nearest to
     /// the arm); a run reaches it when the end effector is within 1 cm and 0.02 rad.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exact::opt_array", skip_serializing_if = "Option::is_none")]
     pub pose: Option<[f64; 7]>,
 }
 
@@ -266,6 +344,7 @@ pub struct DebrisCfg {
     /// scene TOML (relative to the scenario file), or `""` for no debris.
     pub scene: String,
     /// Position of the arm base in the module's LVLH frame, m (base axes = LVLH axes).
+    #[serde(deserialize_with = "exact::array")]
     pub base_lvlh: [f64; 3],
     /// A link–debris pair at or below this distance is a contact (a collision: run failed), m.
     pub contact_margin_m: f64,
@@ -318,6 +397,20 @@ fn scene_fit() -> String {
     "scene".into()
 }
 
+/// Longest run, s (one week): longer durations are refused (and cannot overflow a deadline).
+pub const MAX_DURATION_S: f64 = 7.0 * 86400.0;
+/// Largest `kp · period²` of the tracker.
+pub const KP_DT2_MAX: f64 = 0.05;
+/// Largest `kd · period` of the tracker.
+pub const KD_DT_MAX: f64 = 0.5;
+
+/// The largest tracker gains (kp, kd) at `control_hz`: `kp · dt² <= KP_DT2_MAX` (a bandwidth
+/// of at most ~0.22 rad per tick) and `kd · dt <= KD_DT_MAX`. At 1 kHz: kp <= 50 000 1/s²,
+/// kd <= 500 1/s (the default is 400 / 40).
+pub fn gain_limits(control_hz: f64) -> (f64, f64) {
+    (KP_DT2_MAX * control_hz * control_hz, KD_DT_MAX * control_hz)
+}
+
 /// Joint limits of the arm the scenario is checked against.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArmLimits {
@@ -325,6 +418,25 @@ pub struct ArmLimits {
     pub q_max: [f64; NJ],
     pub v_max: [f64; NJ],
     pub tau_max: [f64; NJ],
+}
+
+/// Fixed-length arrays read exactly: serde's arrays silently drop extra elements
+/// (`kp = [400, 400, 400, 400, 400, 400, -1, nan]` would pass as six gains).
+mod exact {
+    use serde::{de::Error, Deserialize, Deserializer};
+
+    fn exact<E: Error, const N: usize>(v: Vec<f64>) -> Result<[f64; N], E> {
+        let n = v.len();
+        v.try_into().map_err(|_| E::invalid_length(n, &format!("exactly {N} numbers").as_str()))
+    }
+
+    pub fn array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+        exact(Vec::<f64>::deserialize(d)?)
+    }
+
+    pub fn opt_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Option<[f64; N]>, D::Error> {
+        Option::<Vec<f64>>::deserialize(d)?.map(exact).transpose()
+    }
 }
 
 struct Checker<'a> {
@@ -336,7 +448,7 @@ impl Checker<'_> {
         ConfigError::Invalid {
             origin: self.origin.to_string(),
             field: field.into(),
-            value: value.to_string(),
+            value: dkrrt_io::printable(&value.to_string()),
             reason: reason.into(),
         }
     }
@@ -352,6 +464,20 @@ impl Checker<'_> {
             Ok(())
         } else {
             Err(self.fail(field, v, "must be a finite number >= 0"))
+        }
+    }
+    fn at_most(&self, field: &str, v: f64, hi: f64, unit: &str) -> Result<(), ConfigError> {
+        if v <= hi {
+            Ok(())
+        } else {
+            Err(self.fail(field, v, format!("must be <= {hi} {unit}").trim_end().to_string()))
+        }
+    }
+    fn at_least(&self, field: &str, v: f64, lo: f64, unit: &str) -> Result<(), ConfigError> {
+        if v >= lo {
+            Ok(())
+        } else {
+            Err(self.fail(field, v, format!("must be >= {lo} {unit}").trim_end().to_string()))
         }
     }
     fn all_positive(&self, field: &str, v: &[f64; NJ]) -> Result<(), ConfigError> {
@@ -411,7 +537,7 @@ impl Scenario {
     /// Parses a scenario; `origin` names it in errors.
     pub fn from_toml_str(s: &str, origin: &str) -> Result<Scenario, ConfigError> {
         toml::from_str(s).map_err(|e| ConfigError::Parse {
-            origin: origin.to_string(),
+            origin: dkrrt_io::printable(origin),
             message: e.to_string().trim_end().to_string(),
         })
     }
@@ -422,10 +548,11 @@ impl Scenario {
             return Ok(Self::default_scenario());
         }
         let p = Path::new(path);
-        let text =
-            std::fs::read_to_string(p).map_err(|source| ConfigError::Io { path: p.to_path_buf(), source })?;
+        let text = dkrrt_io::read_text_capped(p, dkrrt_io::limits::SCENARIO)
+            .map_err(|e| ConfigError::Io { path: p.to_path_buf(), source: e.into() })?;
         let mut sc = Self::from_toml_str(&text, path)?;
         sc.base_dir = p.parent().map(|d| d.to_path_buf());
+        sc.origin = Some(path.to_string());
         Ok(sc)
     }
 
@@ -491,18 +618,34 @@ impl Scenario {
     /// Checks values and cross-field rules against the arm's limits. The
     /// error names the field, its value and the rule.
     pub fn validate(&self, arm: &ArmLimits) -> Result<(), ConfigError> {
-        let c = Checker { origin: &self.name };
+        let origin = dkrrt_io::printable(self.origin.as_deref().unwrap_or(&self.name));
+        let c = Checker { origin: &origin };
         for (i, g) in self.robot.gravity.iter().enumerate() {
-            if !g.is_finite() {
-                return Err(c.fail(format!("robot.gravity[{i}]"), g, "must be finite"));
+            if !(g.is_finite() && g.abs() <= 100.0) {
+                return Err(c.fail(format!("robot.gravity[{i}]"), g, "must be finite, |g| <= 100 m/s^2"));
             }
         }
         c.positive("run.duration_s", self.run.duration_s)?;
+        c.at_most("run.duration_s", self.run.duration_s, MAX_DURATION_S, "s (one week)")?;
         c.positive("run.control_hz", self.run.control_hz)?;
         if !(10.0..=20_000.0).contains(&self.run.control_hz) {
             return Err(c.fail("run.control_hz", self.run.control_hz, "must be within [10, 20000] Hz"));
         }
         c.positive("run.heartbeat_hz", self.run.heartbeat_hz)?;
+        c.at_most("run.heartbeat_hz", self.run.heartbeat_hz, 1000.0, "Hz")?;
+        c.at_least(
+            "run.heartbeat_hz",
+            self.run.heartbeat_hz,
+            1.0,
+            "Hz (the launcher's hang detection needs one per 2 s)",
+        )?;
+        for (name, v, hi) in
+            [("motion.a_max", &self.motion.a_max, 1000.0), ("motion.j_max", &self.motion.j_max, 1e5)]
+        {
+            for (i, x) in v.iter().enumerate() {
+                c.at_most(&format!("{name}[{i}]"), *x, hi, "")?;
+            }
+        }
         c.all_positive("motion.v_max", &self.motion.v_max)?;
         c.all_positive("motion.a_max", &self.motion.a_max)?;
         c.all_positive("motion.j_max", &self.motion.j_max)?;
@@ -517,8 +660,30 @@ impl Scenario {
         }
         c.all_positive("tracker.kp", &self.tracker.kp)?;
         c.all_positive("tracker.kd", &self.tracker.kd)?;
+        // Discrete-time stability of the computed-torque loop (one tick of delay): the gains
+        // must stay well inside what the control rate can close.
+        let (kp_max, kd_max) = gain_limits(self.run.control_hz);
+        for i in 0..NJ {
+            let why = |g: f64| {
+                format!("must be <= {g:.0} at {} Hz (gain x period^2 <= {KP_DT2_MAX}, kd x period <= {KD_DT_MAX}): a higher gain makes the loop unstable", self.run.control_hz)
+            };
+            if self.tracker.kp[i] > kp_max {
+                return Err(c.fail(format!("tracker.kp[{i}]"), self.tracker.kp[i], why(kp_max)));
+            }
+            if self.tracker.kd[i] > kd_max {
+                return Err(c.fail(format!("tracker.kd[{i}]"), self.tracker.kd[i], why(kd_max)));
+            }
+        }
         if self.tracker.stale_ticks == 0 {
             return Err(c.fail("tracker.stale_ticks", 0, "must be >= 1"));
+        }
+        let max_stale = (0.1 * self.run.control_hz).ceil() as u32;
+        if self.tracker.stale_ticks > max_stale {
+            return Err(c.fail(
+                "tracker.stale_ticks",
+                self.tracker.stale_ticks,
+                format!("must be <= {max_stale} (0.1 s): a longer blind interval is no safe hold"),
+            ));
         }
         let period_us = 1e6 / self.run.control_hz;
         if (self.tracker.phase_us + self.tracker.state_wait_us) as f64 >= period_us {
@@ -571,13 +736,24 @@ impl Scenario {
             return Err(c.fail("sim.substeps", self.sim.substeps, "must be 1..=100"));
         }
         c.non_negative("sim.noise_q_std", self.sim.noise_q_std)?;
+        c.at_most("sim.noise_q_std", self.sim.noise_q_std, 0.05, "rad")?;
         c.non_negative("sim.noise_qd_std", self.sim.noise_qd_std)?;
-        c.non_negative("sim.brake_damping", self.sim.brake_damping)?;
+        c.at_most("sim.noise_qd_std", self.sim.noise_qd_std, 0.5, "rad/s")?;
+        c.positive("sim.brake_damping", self.sim.brake_damping)?;
+        c.at_most("sim.brake_damping", self.sim.brake_damping, 1e5, "N·m·s/rad")?;
         if self.sim.delay_ticks > 1000 {
             return Err(c.fail("sim.delay_ticks", self.sim.delay_ticks, "must be <= 1000"));
         }
         if self.sim.command_timeout_ticks == 0 {
             return Err(c.fail("sim.command_timeout_ticks", 0, "must be >= 1"));
+        }
+        let max_timeout = (0.5 * self.run.control_hz).ceil() as u32;
+        if self.sim.command_timeout_ticks > max_timeout {
+            return Err(c.fail(
+                "sim.command_timeout_ticks",
+                self.sim.command_timeout_ticks,
+                format!("must be <= {max_timeout} (0.5 s): the brakes must catch a dead controller"),
+            ));
         }
         let d = &self.debris;
         for (i, b) in d.base_lvlh.iter().enumerate() {
@@ -589,10 +765,16 @@ impl Scenario {
         if !(30.0..=100.0).contains(&d.sensor_rate_hz) {
             return Err(c.fail("debris.sensor_rate_hz", d.sensor_rate_hz, "must be within [30, 100] Hz"));
         }
-        c.non_negative("debris.pos_sigma_m", d.pos_sigma_m)?;
-        c.non_negative("debris.att_sigma_rad", d.att_sigma_rad)?;
-        c.non_negative("debris.vel_sigma_mps", d.vel_sigma_mps)?;
-        c.non_negative("debris.rate_sigma_radps", d.rate_sigma_radps)?;
+        c.at_most("debris.contact_margin_m", d.contact_margin_m, 1.0, "m")?;
+        for (name, v, hi) in [
+            ("debris.pos_sigma_m", d.pos_sigma_m, 1.0),
+            ("debris.att_sigma_rad", d.att_sigma_rad, 1.0),
+            ("debris.vel_sigma_mps", d.vel_sigma_mps, 10.0),
+            ("debris.rate_sigma_radps", d.rate_sigma_radps, 10.0),
+        ] {
+            c.non_negative(name, v)?;
+            c.at_most(name, v, hi, "")?;
+        }
         if !(0.0..1.0).contains(&d.dropout) {
             return Err(c.fail("debris.dropout", d.dropout, "must be within [0, 1)"));
         }
@@ -613,6 +795,7 @@ impl Scenario {
             ));
         }
         c.positive("predictor.dt_s", p.dt_s)?;
+        c.at_most("predictor.dt_s", p.dt_s, 1.0, "s")?;
         if p.fit_runs == 0 || p.fit_runs > 64 {
             return Err(c.fail("predictor.fit_runs", p.fit_runs, "must be 1..=64"));
         }
@@ -652,6 +835,20 @@ impl Scenario {
         if !(pl.delta_m >= 0.001 && pl.delta_m <= 0.5) {
             return Err(c.fail("planner.delta_m", pl.delta_m, "must be within [0.001, 0.5] m"));
         }
+        let su = &self.supervision;
+        for (field, v) in [("supervision.predictor", &su.predictor), ("supervision.planner", &su.planner)] {
+            if !RESTART_POLICIES.contains(&v.as_str()) {
+                return Err(c.fail(field, format!("{v:?}"), "must be \"never\" or \"on-failure\""));
+            }
+        }
+        if su.max_restarts > 100 {
+            return Err(c.fail("supervision.max_restarts", su.max_restarts, "must be <= 100"));
+        }
+        c.positive("supervision.backoff_ms", su.backoff_ms)?;
+        c.at_most("supervision.backoff_ms", su.backoff_ms, 60_000.0, "ms")?;
+        let k = &self.checks;
+        c.positive("checks.goal_tolerance_rad", k.goal_tolerance_rad)?;
+        c.at_most("checks.goal_tolerance_rad", k.goal_tolerance_rad, 0.5, "rad")?;
         if let Some(e) = &self.episode {
             if !dkrrt_debris::SCENE_NAMES.contains(&e.scene.as_str()) {
                 return Err(c.fail("episode.scene", format!("{:?}", e.scene), "must be a named scene"));

@@ -196,8 +196,8 @@ impl ArmModel {
     /// Load from a URDF file on disk.
     pub fn from_urdf_file(path: impl AsRef<Path>) -> Result<Self, ModelError> {
         let path = path.as_ref();
-        let s = std::fs::read_to_string(path)
-            .map_err(|source| ModelError::Io { path: path.to_path_buf(), source })?;
+        let s = dkrrt_io::read_text_capped(path, dkrrt_io::limits::URDF)
+            .map_err(|e| ModelError::Io { path: path.to_path_buf(), source: e.into() })?;
         Self::from_urdf_str(&s)
     }
 

@@ -34,6 +34,11 @@ fn err(what: impl Into<String>, detail: impl Debug) -> BusError {
     BusError { what: what.into(), detail: format!("{detail:?}") }
 }
 
+/// An error whose detail is already a sentence (shown as is, not debug-quoted).
+fn err_text(what: impl Into<String>, detail: String) -> BusError {
+    BusError { what: what.into(), detail }
+}
+
 /// A payload type of the contract, with the one service that carries it.
 pub trait Topic: Debug + Copy + ZeroCopySend + Validate + Zeroed + 'static {
     /// iceoryx2 service name.
@@ -84,15 +89,92 @@ pub const OBSERVATION_BUFFER: usize = 16;
 /// Late subscribers receive the last sample (the active trajectory or goal).
 pub const HISTORY: usize = 1;
 
-/// The iceoryx2 config of run `run`: its own file prefix.
-pub fn run_config(run: &str) -> Result<Config, BusError> {
-    if run.is_empty() || !run.chars().all(|c| c.is_ascii_alphanumeric() || c == '-') {
-        return Err(err("run id", format!("{run:?}: use letters, digits and '-'")));
+/// Longest run id (iceoryx2's file names must hold the prefix `dkrrt_<run>_` plus its own
+/// 40-hex-digit service hashes and suffixes).
+pub const MAX_RUN_ID: usize = 64;
+
+/// Checks a run id: 1..=[`MAX_RUN_ID`] letters, digits and '-', starting with a letter or digit
+/// (so it can never be read as an option).
+pub fn check_run_id(run: &str) -> Result<(), BusError> {
+    let shown: String = run.chars().take(80).flat_map(char::escape_default).collect();
+    if run.is_empty() || run.len() > MAX_RUN_ID {
+        return Err(err_text("run id", format!("\"{shown}\" must be 1 to {MAX_RUN_ID} characters long")));
     }
+    if !run.chars().all(|c| c.is_ascii_alphanumeric() || c == '-')
+        || !run.starts_with(|c: char| c.is_ascii_alphanumeric())
+    {
+        return Err(err_text(
+            "run id",
+            format!("\"{shown}\": use letters, digits and '-', starting with a letter or digit"),
+        ));
+    }
+    Ok(())
+}
+
+/// The iceoryx2 root directory of this user: `/tmp/dkrrt-iceoryx2-<uid>/`, created owner-only
+/// (0700). iceoryx2's shared default (`/tmp/iceoryx2/`) belongs to whoever made it first; this
+/// one is checked to be a real directory (not a symlink) owned by us and closed to others.
+pub fn private_root() -> Result<std::path::PathBuf, BusError> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    // SAFETY: getuid(2) cannot fail.
+    let uid = unsafe { libc::getuid() };
+    let dir = std::env::temp_dir().join(format!("dkrrt-iceoryx2-{uid}"));
+    match std::fs::DirBuilder::new().mode(0o700).create(&dir) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+        Err(e) => return Err(err(format!("create {}", dir.display()), e)),
+    }
+    let m = std::fs::symlink_metadata(&dir).map_err(|e| err(format!("inspect {}", dir.display()), e))?;
+    if !m.file_type().is_dir() || m.uid() != uid {
+        return Err(err_text(
+            format!("iceoryx2 root {}", dir.display()),
+            "is not a directory of this user (another user may have planted it): remove it".to_string(),
+        ));
+    }
+    if m.permissions().mode() & 0o077 != 0 {
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700))
+            .map_err(|e| err(format!("chmod 700 {}", dir.display()), e))?;
+    }
+    Ok(dir)
+}
+
+/// The iceoryx2 config of run `run`: its own file prefix, under this user's private root.
+pub fn run_config(run: &str) -> Result<Config, BusError> {
+    check_run_id(run)?;
     let mut cfg = Config::default();
     let prefix = format!("dkrrt_{run}_");
     cfg.global.prefix = FileName::new(prefix.as_bytes()).map_err(|e| err("run prefix", e))?;
+    let root = format!("{}/", private_root()?.display());
+    let root = iceoryx2::prelude::Path::new(root.as_bytes()).map_err(|e| err("iceoryx2 root", e))?;
+    cfg.global.set_root_path(&root);
     Ok(cfg)
+}
+
+/// iceoryx2 0.10 creates its per-prefix management segment in `/dev/shm` world-writable
+/// (0666): another user could overwrite it and break later nodes. Makes ours owner-only and
+/// refuses a run whose segment belongs to someone else (planted before the run started).
+fn protect_shm(run: &str) -> Result<(), BusError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    // SAFETY: getuid(2) cannot fail.
+    let uid = unsafe { libc::getuid() };
+    let prefix = format!("dkrrt_{run}_");
+    for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        if !name.starts_with(&prefix) {
+            continue;
+        }
+        let Ok(m) = std::fs::symlink_metadata(e.path()) else { continue };
+        if m.uid() != uid {
+            return Err(err_text(
+                format!("run {run}"),
+                format!("/dev/shm/{name} belongs to another user: refusing to use this run id"),
+            ));
+        }
+        if m.file_type().is_file() && m.permissions().mode() & 0o077 != 0 {
+            let _ = std::fs::set_permissions(e.path(), std::fs::Permissions::from_mode(0o600));
+        }
+    }
+    Ok(())
 }
 
 /// A process's node on the bus of one run.
@@ -114,6 +196,7 @@ impl Bus {
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
             .map_err(|e| err(format!("create node {name} for run {run}"), e))?;
+        protect_shm(run)?;
         Ok(Bus { node, run: run.to_string(), cfg })
     }
 
@@ -150,6 +233,25 @@ impl Bus {
         Ok(self.service::<T>()?.dynamic_config().number_of_subscribers())
     }
 
+    /// Publishers connected to `T`'s service now (a dead process's ports count until its
+    /// stale resources are removed).
+    pub fn publisher_count<T: Topic>(&self) -> Result<usize, BusError> {
+        use iceoryx2::service::port_factory::PortFactory as _;
+        Ok(self.service::<T>()?.dynamic_config().number_of_publishers())
+    }
+
+    /// The unique ids of the publishers connected to `T`'s service now (allocates; for rare
+    /// checks such as "is the publisher we followed still there").
+    pub fn publisher_ids<T: Topic>(&self) -> Result<Vec<u128>, BusError> {
+        use iceoryx2::service::port_factory::PortFactory as _;
+        let mut ids = Vec::new();
+        self.service::<T>()?.dynamic_config().list_publishers(|p| {
+            ids.push(p.publisher_id.value());
+            CallbackProgression::Continue
+        });
+        Ok(ids)
+    }
+
     pub fn subscriber<T: Topic>(&self) -> Result<Sub<T>, BusError> {
         let port = self
             .service::<T>()?
@@ -157,7 +259,7 @@ impl Bus {
             .buffer_size(T::BUFFER)
             .create()
             .map_err(|e| err(format!("subscriber on {}", T::SERVICE), e))?;
-        Ok(Sub { port, received: 0, rejected: 0, lost: 0, last: None, last_error: None })
+        Ok(Sub { port, received: 0, rejected: 0, lost: 0, last: None, last_error: None, origin: 0 })
     }
 
     pub fn config(&self) -> &Config {
@@ -267,6 +369,9 @@ pub struct Sub<T: Topic> {
     last: Option<(u32, u64)>,
     /// The most recent validation failure.
     pub last_error: Option<ValidationError>,
+    /// iceoryx2's unique id of the publisher of the last valid sample handed out (after
+    /// [`Sub::latest`]: of the newest one). Tells two publishers of one `Source` apart.
+    pub origin: u128,
 }
 
 impl<T: Topic> Sub<T> {
@@ -313,6 +418,7 @@ impl<T: Topic> Sub<T> {
             self.last = Some((h.source, h.seq));
             match check(sample.payload()) {
                 Ok(()) => {
+                    self.origin = sample.header().publisher_id().value();
                     f(sample.payload());
                     n += 1;
                 }

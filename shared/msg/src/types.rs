@@ -87,6 +87,11 @@ pub const FLAG_END_OF_RUN: u32 = 1;
 /// [`RobotState`] flag: the plant's own watchdog has engaged the joint brakes
 /// (no valid torque command for too long).
 pub const FLAG_BRAKE_ENGAGED: u32 = 2;
+/// [`RobotState`] flag: the plant is ending the run (a stop request, or its duration is
+/// over with the arm moving): the tracker brakes to rest within the motion limits and holds,
+/// trajectory sources stop planning; the plant ends the run (`FLAG_END_OF_RUN`) once the arm
+/// is at rest.
+pub const FLAG_STOPPING: u32 = 4;
 
 /// Measured joint state of the arm, published by the plant (sim or driver) every tick (1 kHz).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]

@@ -198,7 +198,9 @@ impl Scene {
 
     /// Load and validate a scene file.
     pub fn from_file(path: impl AsRef<std::path::Path>) -> Result<Scene, SceneError> {
-        Scene::from_toml(&std::fs::read_to_string(path)?)
+        let text = dkrrt_io::read_text_capped(path.as_ref(), dkrrt_io::limits::SCENARIO)
+            .map_err(std::io::Error::from)?;
+        Scene::from_toml(&text)
     }
 
     /// One of the embedded named scenes (`SCENE_NAMES`).

@@ -57,6 +57,9 @@ pub struct SensorConfig {
     pub latency: f64,
     /// Additional uniform latency jitter [s].
     pub latency_jitter: f64,
+    /// Objects farther than this from the sensor (the LVLH origin) are not observed [m] (a
+    /// real sensor's range; also keeps every observation within the message contract).
+    pub max_range: f64,
 }
 
 impl Default for SensorConfig {
@@ -71,6 +74,7 @@ impl Default for SensorConfig {
             dropout_prob: 0.02,
             latency: 0.03,
             latency_jitter: 0.01,
+            max_range: 500.0,
         }
     }
 }
@@ -147,6 +151,8 @@ pub struct Sensor {
     head: usize,
     len: usize,
     last_release: f64,
+    /// Objects not observed because they were beyond `max_range`.
+    pub out_of_range: u64,
     /// Measurements lost to dropout.
     pub dropped: u64,
     /// Measurements lost because the latency queue was full.
@@ -178,6 +184,9 @@ impl Sensor {
                 return err(f, "must be finite and >= 0");
             }
         }
+        if !(cfg.max_range > 0.0) {
+            return err("max_range", "must be > 0");
+        }
         if !(0.0..=1.0).contains(&cfg.dropout_prob) {
             return err("dropout_prob", "must be in [0, 1]");
         }
@@ -195,6 +204,7 @@ impl Sensor {
             len: 0,
             last_release: f64::NEG_INFINITY,
             dropped: 0,
+            out_of_range: 0,
             queue_overflow: 0,
         })
     }
@@ -234,6 +244,10 @@ impl Sensor {
         let seq = self.seq;
         self.seq = self.seq.wrapping_add(1);
         for d in truth {
+            if d.state.p.norm() > c.max_range {
+                self.out_of_range += 1;
+                continue;
+            }
             if c.dropout_prob > 0.0 && self.rng.random::<f64>() < c.dropout_prob {
                 self.dropped += 1;
                 continue;

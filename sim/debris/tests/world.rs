@@ -209,3 +209,26 @@ fn sensor_config_errors_name_the_field() {
     let e = Sensor::new(SensorConfig { latency: 5.0, ..Default::default() }, 0).unwrap_err();
     assert_eq!(e.field, "latency");
 }
+
+#[test]
+fn objects_beyond_the_sensor_range_are_not_observed() {
+    let s = Scene::named("dense").unwrap();
+    let mut w = DebrisWorld::new(&s).unwrap();
+    let cfg = SensorConfig {
+        dropout_prob: 0.0,
+        latency: 0.0,
+        latency_jitter: 0.0,
+        max_range: 1e-3,
+        ..Default::default()
+    };
+    let mut sensor = Sensor::new(cfg, 1).unwrap();
+    let mut buf = ObsBuffer::new();
+    let mut seen = 0;
+    for _ in 0..200 {
+        w.step(0.005);
+        seen += sensor.poll(w.time(), w.debris(), &mut buf);
+    }
+    assert_eq!(seen, 0, "everything is out of a 1 mm range");
+    assert!(sensor.out_of_range > 0);
+    assert!(Sensor::new(SensorConfig { max_range: 0.0, ..Default::default() }, 1).is_err());
+}

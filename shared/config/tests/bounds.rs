@@ -1,0 +1,101 @@
+//! Every defect of the scenario's input the fail-safe issue found: each refused, naming the
+//! file and the field.
+
+use dkrrt_config::{Scenario, DEFAULT_SCENARIO};
+
+fn write(name: &str, text: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("dkrrt-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// The error of loading the default scenario with `from` replaced by `to` (load + validate).
+fn refused(from: &str, to: &str) -> String {
+    assert!(DEFAULT_SCENARIO.contains(from), "{from}");
+    let p = write("case.toml", &DEFAULT_SCENARIO.replacen(from, to, 1));
+    let r = Scenario::load(p.to_str().unwrap()).and_then(|s| s.load_arm().map(|_| ()));
+    let e = r.expect_err("refused").to_string();
+    assert!(e.contains("case.toml"), "the error names the file: {e}");
+    e
+}
+
+#[test]
+fn arrays_of_the_wrong_length_are_refused() {
+    let kp = "kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0]";
+    let e = refused(kp, "kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0, -1.0, nan]");
+    assert!(e.contains("kp") && e.contains("exactly 6"), "{e}");
+    let e = refused(kp, "kp = [400.0, 400.0]");
+    assert!(e.contains("kp") && e.contains("exactly 6"), "{e}");
+    let e = refused("gravity = [0.0, 0.0, 0.0]", "gravity = [0.0, 0.0, 0.0, 1.0]");
+    assert!(e.contains("gravity") && e.contains("exactly 3"), "{e}");
+    let e = refused("q = [0.35, -0.2, 0.7, 0.3, 0.2, 0.4]", "q = [0.35, -0.2, 0.7, 0.3, 0.2, 0.4, 9.0]");
+    assert!(e.contains("exactly 6"), "{e}");
+}
+
+#[test]
+fn physically_senseless_values_are_refused_naming_the_field() {
+    let kp = "kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0]";
+    for (from, to, field) in [
+        (kp, "kp = [400000.0, 400000.0, 400000.0, 400000.0, 400000.0, 400000.0]", "tracker.kp[0]"),
+        (
+            "kd = [40.0, 40.0, 40.0, 40.0, 40.0, 40.0]",
+            "kd = [40.0, 40.0, 4000.0, 40.0, 40.0, 40.0]",
+            "tracker.kd[2]",
+        ),
+        ("noise_q_std = 0.0", "noise_q_std = 1e300", "sim.noise_q_std"),
+        ("noise_qd_std = 0.0", "noise_qd_std = 5.0", "sim.noise_qd_std"),
+        ("stale_ticks = 3", "stale_ticks = 4000000000", "tracker.stale_ticks"),
+        ("command_timeout_ticks = 20", "command_timeout_ticks = 100000", "sim.command_timeout_ticks"),
+        ("gravity = [0.0, 0.0, 0.0]", "gravity = [0.0, 0.0, 1e200]", "robot.gravity[2]"),
+        ("duration_s = 8.0", "duration_s = 1e11", "run.duration_s"),
+        ("heartbeat_hz = 10.0", "heartbeat_hz = 1e9", "run.heartbeat_hz"),
+        ("brake_damping = 200.0", "brake_damping = 0.0", "sim.brake_damping"),
+        ("pos_sigma_m = 0.01", "pos_sigma_m = 1e9", "debris.pos_sigma_m"),
+        ("dt_s = 0.1", "dt_s = 1e9", "predictor.dt_s"),
+    ] {
+        let e = refused(from, to);
+        assert!(e.contains(field), "{to}: {e}");
+    }
+    // The gain bound is the stability bound at the control rate: the largest allowed gain
+    // passes.
+    let (kp_max, kd_max) = dkrrt_config::gain_limits(1000.0);
+    let text =
+        DEFAULT_SCENARIO.replacen(kp, &format!("kp = [{kp_max:.1}, 400.0, 400.0, 400.0, 400.0, 400.0]"), 1);
+    let text = text.replacen("kd = [40.0,", &format!("kd = [{kd_max:.1},"), 1);
+    let p = write("edge.toml", &text);
+    Scenario::load(p.to_str().unwrap()).unwrap().load_arm().unwrap();
+}
+
+#[test]
+fn errors_name_the_file_not_the_scenario_name_and_escape_control_characters() {
+    let p = write(
+        "named.toml",
+        &DEFAULT_SCENARIO.replacen("name = \"default\"", "name = \"x\\u001b[31mred\"", 1).replacen(
+            "stale_ticks = 3",
+            "stale_ticks = 0",
+            1,
+        ),
+    );
+    let e = Scenario::load(p.to_str().unwrap()).unwrap().load_arm().unwrap_err().to_string();
+    assert!(e.contains("named.toml") && e.contains("tracker.stale_ticks"), "{e}");
+    assert!(!e.contains('\u{1b}'), "no raw escape: {e:?}");
+    // A file name with a control character is shown escaped.
+    let p = write("bad\u{7}name.toml", "not toml");
+    let e = Scenario::load(p.to_str().unwrap()).unwrap_err().to_string();
+    assert!(!e.contains('\u{7}') && e.contains("\\u{7}"), "{e:?}");
+}
+
+#[test]
+fn devices_and_huge_files_are_not_read() {
+    let e = Scenario::load("/dev/zero").unwrap_err().to_string();
+    assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+    let big = write("big.toml", &"#".repeat(2 << 20));
+    let e = Scenario::load(big.to_str().unwrap()).unwrap_err().to_string();
+    assert!(e.contains("big.toml") && e.contains("limit"), "{e}");
+    // A URDF that is a device.
+    let p = write("urdf.toml", &DEFAULT_SCENARIO.replacen("urdf = \"\"", "urdf = \"/dev/zero\"", 1));
+    let e = Scenario::load(p.to_str().unwrap()).unwrap().load_arm().unwrap_err().to_string();
+    assert!(e.contains("robot.urdf") && e.contains("not a regular file"), "{e}");
+}
