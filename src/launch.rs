@@ -39,6 +39,9 @@ pub const GRACE_NS: u64 = 300_000_000;
 /// stop limit is 15 s of plant time).
 pub const STOP_KILL_NS: u64 = 25_000_000_000;
 
+/// The node name of `dkrrt goal` (a user's goal sent to a live run; not a rogue).
+pub const GOAL_CLI_NODE: &str = "goal-cli";
+
 /// Processes whose death ends the run (the arm cannot be controlled without them).
 fn critical(name: &str) -> bool {
     matches!(name, "sim" | "tracker")
@@ -340,6 +343,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let mut end_at: Option<u64> = None;
     let mut rogue: Vec<(String, u32)> = Vec::new();
     let mut restarts: Vec<Value> = Vec::new();
+    let mut visitors: Vec<u32> = Vec::new();
     let mut next_node_scan = 0u64;
 
     loop {
@@ -427,6 +431,14 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             if let Ok((alive, _)) = Bus::nodes(&cfg) {
                 for (name, pid) in alive {
                     let ours = pid == std::process::id() || procs.iter().any(|p| p.child.id() == pid);
+                    // `dkrrt goal` (node `goal-cli`) is how a user talks to a live run: a visitor,
+                    // listed, not a rogue.
+                    if !ours && name == GOAL_CLI_NODE {
+                        if !visitors.contains(&pid) {
+                            visitors.push(pid);
+                        }
+                        continue;
+                    }
                     if !ours && !rogue.iter().any(|r: &(String, u32)| r.1 == pid) {
                         eprintln!(
                             "dkrrt: a process this run did not start joined its bus: {name} (pid {pid})"
@@ -617,6 +629,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
         "rogue_nodes": ending.rogue,
+        "goal_cli_pids": visitors,
         "restarts": restarts,
         "recording": opts.record.as_ref().map(|f| json!({
             "file": f.display().to_string(),
@@ -745,6 +758,34 @@ pub fn summary(r: &Value) -> String {
         );
     }
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
+    if let Some(v) = r["final_velocity_rad_s"].as_array() {
+        let vmax = v.iter().filter_map(Value::as_f64).fold(0.0f64, |m, x| m.max(x.abs()));
+        s += &format!("   final joint speed {vmax:.1e} rad/s");
+    }
+    for rs in r["restarts"].as_array().into_iter().flatten() {
+        s += &format!(
+            "\n  restarted {} at {:.1} s (pid {} -> {})",
+            rs["name"].as_str().unwrap_or("?"),
+            rs["t_s"].as_f64().unwrap_or(0.0),
+            rs["old_pid"],
+            rs["new_pid"]
+        );
+    }
+    match r["checks"].as_array() {
+        Some(c) if c.iter().all(|c| c["ok"] == true) => {
+            s += &format!("\n  verdict: ok ({} checks passed)", c.len())
+        }
+        Some(c) => {
+            for c in c.iter().filter(|c| c["ok"] != true) {
+                s += &format!(
+                    "\n  FAILED check {}: {}",
+                    c["name"].as_str().unwrap_or("?"),
+                    c["detail"].as_str().unwrap_or("?")
+                );
+            }
+        }
+        None => {}
+    }
     for p in r["processes"].as_array().into_iter().flatten() {
         s += &format!(
             "\n  {:<9} pid {:<7} exit {}{}",

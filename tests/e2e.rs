@@ -668,3 +668,48 @@ fn a_run_is_recorded_to_mcap_and_replayed_on_a_new_run() {
     let _ = std::fs::remove_file(&file);
     let _ = std::fs::remove_file(rp);
 }
+
+/// No debris (no predictor started), the straight source, and a `Goal` message sent to the
+/// live run with `dkrrt goal`: goto re-plans to it and the arm ends there, at rest.
+#[test]
+fn a_goal_message_retargets_a_run_without_debris() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = std::env::temp_dir().join(format!("dkrrt-goalmsg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = dir.join("plain.toml");
+    let text = without_episode(dkrrt_config::DEFAULT_SCENARIO)
+        .replacen("scene = \"sparse-slow\"", "scene = \"\"", 1)
+        .replacen("method = \"dk-rrt\"", "method = \"straight\"", 1)
+        .replacen("duration_s = 8.0", "duration_s = 16.0", 1)
+        // About the goal message, not the VM's stalls (as the real-time test above).
+        .replacen("stale_ticks = 3 ", "stale_ticks = 20 ", 1);
+    std::fs::write(&sc, &text).unwrap();
+    let run = format!("e2e-goal-{}", std::process::id());
+    let rp = report_path("goalmsg");
+    let (mut child, _rest, pids) = start_launch(&["--scenario", sc.to_str().unwrap(), "--run", &run], &rp);
+    assert!(!pids.contains_key("predictor"), "no debris, no predictor: {pids:?}");
+    std::thread::sleep(Duration::from_millis(1000));
+    let goal = [0.1, -0.3, 0.8, 0.2, 0.3, 0.1];
+    let out = Command::new(exe())
+        .args(["goal", "--run", &run, "--q", "0.1,-0.3,0.8,0.2,0.3,0.1"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let status = child.wait().unwrap();
+    let r = read_report(&rp);
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(status.success(), "{:#}", r["checks"]);
+    assert_eq!(r["ok"], true);
+    assert!(r["debris"].is_null());
+    assert_eq!(num(&r, "/goto/goals_received"), 1.0, "{:#}", r["goto"]);
+    // The goal tool is a visitor on the run's bus, not a rogue.
+    assert!(r["rogue_nodes"].as_array().unwrap().is_empty(), "{}", r["rogue_nodes"]);
+    assert_eq!(r["goal_cli_pids"].as_array().unwrap().len(), 1, "{}", r["goal_cli_pids"]);
+    assert!(num(&r, "/tracker/trajectories_accepted") >= 2.0, "{:#}", r["tracker"]);
+    let q = r["sim"]["final_q"].as_array().unwrap();
+    for j in 0..6 {
+        assert!((q[j].as_f64().unwrap() - goal[j]).abs() < 0.01, "joint {j}: {q:?}");
+    }
+    assert_at_rest_within_limits(&r);
+    let _ = std::fs::remove_file(rp);
+}

@@ -158,8 +158,21 @@ fn a_trajectory_that_does_not_start_at_the_reference_is_rejected() {
     for _ in 0..1000 {
         l.tick(true);
     }
+    let q_at = l.plant.true_state().0;
     let e = l.ctrl.set_trajectory(&far).expect("brake");
     assert_eq!(e.reason, Reason::InvalidTrajectory);
+    // The arm did not follow it: it braked to rest near where it was, within the limits,
+    // nowhere near the rejected trajectory's [0.5; 6].
+    for _ in 0..3000 {
+        l.tick(true);
+        let qd = l.plant.true_state().1;
+        assert!((0..NJ).all(|j| qd[j].abs() <= l.cfg.limits.v_max[j] * 1.01), "{qd}");
+    }
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
+    let (q, qd) = l.plant.true_state();
+    assert!(qd.amax() < 1e-6, "{qd}");
+    assert!((q - q_at).amax() < 0.05, "moved {} rad after the rejection", (q - q_at).amax());
+    assert!((0..NJ).any(|j| (q[j] - 0.5).abs() > 0.1), "{q}");
 }
 
 #[test]
