@@ -31,7 +31,8 @@ enum Fault {
     Kill(&'static str),
     Stop(&'static str),
     Inject(Service),
-    RogueGoto,
+    /// A second `goto` or `sim` started on the live run.
+    Rogue(&'static str),
     ReportDiskFull,
 }
 
@@ -81,10 +82,11 @@ impl Service {
 
 fn cases() -> Vec<Fault> {
     let mut v = Vec::new();
-    for p in ["sim", "predictor", "tracker", "planner"] {
+    // goto: on a run of the straight source without debris (the default runs the planner).
+    for p in ["sim", "predictor", "tracker", "planner", "goto"] {
         v.push(Fault::Kill(p));
     }
-    for p in ["sim", "predictor", "tracker", "planner"] {
+    for p in ["sim", "predictor", "tracker", "planner", "goto"] {
         v.push(Fault::Stop(p));
     }
     for s in [
@@ -97,7 +99,8 @@ fn cases() -> Vec<Fault> {
     ] {
         v.push(Fault::Inject(s));
     }
-    v.push(Fault::RogueGoto);
+    v.push(Fault::Rogue("goto"));
+    v.push(Fault::Rogue("sim"));
     v.push(Fault::ReportDiskFull);
     v
 }
@@ -109,6 +112,7 @@ fn describe(f: Fault) -> (String, String) {
             let then = match p {
                 "sim" => "tracker safe hold, run fails naming sim",
                 "tracker" => "plant brakes, arm at rest, run fails naming tracker",
+                "goto" => "tracker finishes (or brakes on) its trajectory, run goes on to its end, arm at rest, run fails naming goto",
                 _ => "restarted, run goes on to its end, arm at rest, run fails naming it",
             };
             (format!("{how} {p}"), then.to_string())
@@ -117,9 +121,12 @@ fn describe(f: Fault) -> (String, String) {
             format!("NaN/out-of-range on {}", s.name()),
             "rejected and counted, arm at rest within limits, run not ok".into(),
         ),
-        Fault::RogueGoto => (
-            "rogue goto on the live run".into(),
-            "rogue node reported, its trajectories ignored, arm at rest, run not ok".into(),
+        Fault::Rogue(p) => (
+            format!("rogue {p} on the live run"),
+            format!(
+                "rogue node reported, its {} ignored by the tracker, arm at rest, run not ok",
+                if p == "sim" { "robot states" } else { "trajectories" }
+            ),
         ),
         Fault::ReportDiskFull => (
             "report on a full disk (/dev/full)".into(),
@@ -135,10 +142,19 @@ struct Launched {
     out: std::thread::JoinHandle<String>,
 }
 
-fn start(exe: &Path, run: &str, duration: f64, report: &Path, stderr: &Path) -> Result<Launched, String> {
+fn start(
+    exe: &Path,
+    run: &str,
+    scenario: &Path,
+    duration: f64,
+    report: &Path,
+    stderr: &Path,
+) -> Result<Launched, String> {
     let err = std::fs::File::create(stderr).map_err(|e| format!("{}: {e}", stderr.display()))?;
     let mut child = Command::new(exe)
-        .args(["launch", "--run", run, "--duration", &duration.to_string(), "--report"])
+        .args(["launch", "--run", run, "--duration", &duration.to_string(), "--scenario"])
+        .arg(scenario)
+        .arg("--report")
         .arg(report)
         .stdout(Stdio::piped())
         .stderr(err)
@@ -248,6 +264,22 @@ fn has_failed(r: &Value, check: &str) -> bool {
     r["failed_checks"].as_array().is_some_and(|a| a.iter().any(|c| c == check))
 }
 
+/// The default scenario without its threat episode and debris, with the straight source
+/// (`dkrrt goto`): sim.initial_q to goal.q.
+fn straight_scenario() -> Result<String, String> {
+    let text = dkrrt_config::DEFAULT_SCENARIO;
+    let i = text.find("\n[episode]").ok_or("the default scenario has no [episode]")? + 1;
+    let j = i + text[i..].find("\n[debris]").ok_or("no [debris] after [episode]")?;
+    let out = format!("{}{}", &text[..i], &text[j + 1..])
+        .replacen("method = \"dk-rrt\"", "method = \"straight\"", 1)
+        .replacen("scene = \"sparse-slow\"", "scene = \"\"", 1);
+    let sc = dkrrt_config::Scenario::from_toml_str(&out, "straight scenario").map_err(|e| e.to_string())?;
+    if sc.planner.method != "straight" || sc.has_debris() {
+        return Err("the straight scenario still has the planner or debris".into());
+    }
+    Ok(out)
+}
+
 /// Runs one case; returns (observed, pass).
 fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result<(String, bool), String> {
     let run = format!("faults-{}-{i}", crate::launch::random_hex(4));
@@ -258,7 +290,15 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
     };
     let duration = 6.0;
     let err_path = dir.join(format!("case{i}.stderr"));
-    let mut l = start(exe, &run, duration, &report, &err_path)?;
+    let scenario = match f {
+        Fault::Kill("goto") | Fault::Stop("goto") => {
+            let p = dir.join(format!("case{i}-straight.toml"));
+            crate::launch::write_private(&p, &straight_scenario()?)?;
+            p
+        }
+        _ => PathBuf::from("default"),
+    };
+    let mut l = start(exe, &run, &scenario, duration, &report, &err_path)?;
     // A random time in [1.0, 3.0) s into the run (mid-motion).
     *rng ^= *rng << 13;
     *rng ^= *rng >> 7;
@@ -272,14 +312,17 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
         Fault::Kill(p) => signal(pid_of(&l.pids, p)?, libc::SIGKILL)?,
         Fault::Stop(p) => signal(pid_of(&l.pids, p)?, libc::SIGSTOP)?,
         Fault::Inject(s) => injected = inject(&run, s, 10)?,
-        Fault::RogueGoto => {
+        Fault::Rogue(p) => {
+            let mut cmd = Command::new(exe);
+            match p {
+                "sim" => cmd.args(["sim", "--run", &run]),
+                _ => cmd.args(["goto", "--run", &run, "--goal", "0.1,0.1,0.1,0.1,0.1,0.1"]),
+            };
             rogue = Some(
-                Command::new(exe)
-                    .args(["goto", "--run", &run, "--goal", "0.1,0.1,0.1,0.1,0.1,0.1"])
-                    .stdout(Stdio::null())
+                cmd.stdout(Stdio::null())
                     .stderr(Stdio::null())
                     .spawn()
-                    .map_err(|e| format!("start rogue goto: {e}"))?,
+                    .map_err(|e| format!("start rogue {p}: {e}"))?,
             );
         }
         Fault::ReportDiskFull => {}
@@ -303,11 +346,7 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
     } else {
         read_report(&report)?
     };
-    if !matches!(f, Fault::ReportDiskFull) {
-        let _ = std::fs::remove_file(&report);
-    }
     let stderr = std::fs::read_to_string(&err_path).unwrap_or_default();
-    let _ = std::fs::remove_file(&err_path);
     let speed = final_speed(&r);
     let rest = speed.is_some_and(|v| v < 1e-3);
     let limits =
@@ -333,6 +372,12 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
                         .is_some_and(|e| e.iter().any(|e| e["reason"] == "stale_state"));
                     not_ok && named && hold
                 }
+                "goto" => {
+                    // The trajectory was out before the fault: the tracker finishes it, or
+                    // brakes on it if the machine stalls it into a safe hold (goto never
+                    // restarts, so nothing re-plans): the run goes on to its end either way.
+                    not_ok && named && rest && limits && dur >= duration - 1e-9
+                }
                 "tracker" => {
                     let brakes =
                         r.pointer("/safe_hold/plant_brake_engagements").and_then(Value::as_u64).unwrap_or(0);
@@ -351,21 +396,33 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
                 }
             };
             let restarts = r["restarts"].as_array().map_or(0, Vec::len);
-            (format!("{base}; {restarts} restart(s); reason: {reason}"), ok)
+            let goal = if p == "goto" {
+                let holds = r.pointer("/safe_hold/entries").and_then(Value::as_u64).unwrap_or(0);
+                let goal = if has_failed(&r, "goal_reached") { "not reached" } else { "reached" };
+                format!("; goal {goal}, {holds} safe hold(s)")
+            } else {
+                String::new()
+            };
+            (format!("{base}; {restarts} restart(s){goal}; reason: {reason}"), ok)
         }
         Fault::Inject(s) => {
             let (rejected, need) = s.rejected(&r, injected);
             let ok = not_ok && rest && limits && rejected >= need && has_failed(&r, "rejected_messages");
             (format!("{base}; {rejected} of {injected} injected rejected (need {need})"), ok)
         }
-        Fault::RogueGoto => {
-            let foreign = r.pointer("/tracker/foreign_trajectories").and_then(Value::as_u64).unwrap_or(0);
+        Fault::Rogue(p) => {
+            let (field, what) = if p == "sim" {
+                ("foreign_states", "robot states")
+            } else {
+                ("foreign_trajectories", "trajectories")
+            };
+            let foreign = r.pointer(&format!("/tracker/{field}")).and_then(Value::as_u64).unwrap_or(0);
             let listed = r["rogue_nodes"]
                 .as_array()
-                .is_some_and(|a| a.iter().any(|n| n.as_str().is_some_and(|s| s.starts_with("goto"))));
+                .is_some_and(|a| a.iter().any(|n| n.as_str().is_some_and(|s| s.starts_with(p))));
             let ok =
                 not_ok && rest && limits && foreign >= 1 && listed && has_failed(&r, "no_rogue_publishers");
-            (format!("{base}; rogue listed {listed}, {foreign} foreign trajectories ignored"), ok)
+            (format!("{base}; rogue listed {listed}, {foreign} foreign {what} ignored"), ok)
         }
         Fault::ReportDiskFull => {
             let named = stderr.contains("write report /dev/full");
@@ -392,10 +449,21 @@ pub fn run(only: Option<&str>) -> Result<Vec<Outcome>, String> {
             Err(e) => (format!("error: {e}"), false),
         };
         println!("{case:<40} {expected:<75} {:<6} {observed}", if pass { "pass" } else { "FAIL" });
+        if pass {
+            for name in [format!("case{i}.json"), format!("case{i}.stderr"), format!("case{i}-straight.toml")]
+            {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+        }
         out.push(Outcome { case, expected, observed, pass });
     }
-    let _ = std::fs::remove_dir_all(&dir);
     let failed = out.iter().filter(|o| !o.pass).count();
+    if failed == 0 {
+        let _ = std::fs::remove_dir_all(&dir);
+    } else {
+        // The evidence: each case's report (caseN.json) and the launcher's stderr.
+        eprintln!("faults: reports and logs of the cases kept in {}", dir.display());
+    }
     println!(
         "faults: {} of {} cases pass{}",
         out.len() - failed,

@@ -332,7 +332,7 @@ impl Lockstep {
                 }
             }
         }
-        let out = self.tracker.tick(deliver_state.then_some((m.tick, stamp, &m.q, &m.qd)));
+        let out = self.tracker.tick(deliver_state.then_some((m.tick, stamp, &m.q, &m.qd, m.brake_engaged)));
         if let Some(e) = out.event {
             push(&mut self.events, e);
         }

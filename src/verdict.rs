@@ -66,11 +66,12 @@ pub fn checks(
     );
 
     let foreign = count(tr, "/foreign_trajectories");
+    let foreign_states = count(tr, "/foreign_states");
     push(
         "no_rogue_publishers",
-        end.rogue.is_empty() && foreign == 0,
+        end.rogue.is_empty() && foreign == 0 && foreign_states == 0,
         format!(
-            "{} foreign node(s){}; {foreign} trajectories from a publisher the run did not start (ignored)",
+            "{} foreign node(s){}; {foreign} trajectories and {foreign_states} robot states from a publisher the run did not start (ignored)",
             end.rogue.len(),
             if end.rogue.is_empty() { String::new() } else { format!(": {}", end.rogue.join(", ")) }
         ),
@@ -174,7 +175,7 @@ mod tests {
             "plant": {"max_velocity_ratio": 0.8, "limit_hits": 0, "non_finite_steps": 0, "velocity_limit_ticks": 0, "brake_engagements": 0},
             "debris": {"first_contact": null, "min_distance_m": 0.3},
         });
-        let tr = json!({"final_error_rad": 1e-6, "rejected": {"state": 0, "trajectory": 0}, "safe_hold_entries": 0, "foreign_trajectories": 0});
+        let tr = json!({"final_error_rad": 1e-6, "rejected": {"state": 0, "trajectory": 0}, "safe_hold_entries": 0, "foreign_trajectories": 0, "foreign_states": 0});
         let plan = json!({"goal_reached_s": 9.1, "rejected": 0});
         (sim, tr, plan)
     }
@@ -249,6 +250,8 @@ mod tests {
         let e = Ending { rogue: vec!["goto (pid 77)".into()], ..Ending::default() };
         assert_eq!(verdict(&sc, &e, &sim, &tr, &plan), ["no_rogue_publishers"]);
         let t = with(&tr, "/foreign_trajectories", json!(3));
+        assert_eq!(verdict(&sc, &end, &sim, &t, &plan), ["no_rogue_publishers"]);
+        let t = with(&tr, "/foreign_states", json!(2));
         assert_eq!(verdict(&sc, &end, &sim, &t, &plan), ["no_rogue_publishers"]);
         // No statistics at all is no success.
         assert_eq!(

@@ -66,12 +66,19 @@ fn hot_loop_allocations_per_tick_are_constant_and_bounded() {
         state.q = m.q;
         state.qd = m.qd;
         state.tau = m.tau;
+        state.header.flags = if m.brake_engaged { dkrrt_msg::FLAG_BRAKE_ENGAGED } else { 0 };
         state_pub.publish(&mut state).unwrap();
         sent += 1;
         // tracker side: receive, control, publish
         assert!(state_sub.latest(&mut got, &lim).unwrap());
         let _ = traj_sub.latest(&mut traj, &lim).unwrap();
-        let out = ls.tracker.tick(Some((got.header.seq, got.header.stamp_ns, &got.q, &got.qd)));
+        let out = ls.tracker.tick(Some((
+            got.header.seq,
+            got.header.stamp_ns,
+            &got.q,
+            &got.qd,
+            got.header.flags & dkrrt_msg::FLAG_BRAKE_ENGAGED != 0,
+        )));
         if !started {
             ls.tracker.set_trajectory(&straight);
             started = true;

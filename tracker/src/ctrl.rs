@@ -32,6 +32,10 @@ pub struct TrackerConfig {
     /// replaces at `start_ns` within these tolerances: position (rad), velocity (rad/s),
     /// acceleration (rad/s²).
     pub splice_tol: [f64; 3],
+    /// A measured position further than this from the reference (any joint, rad) means the
+    /// arm is not where the reference is (a plant brake, a push, a stall): the controller
+    /// re-anchors a brake to rest at the measured state instead of pulling the arm back.
+    pub max_track_error: f64,
 }
 
 impl TrackerConfig {
@@ -45,6 +49,7 @@ impl TrackerConfig {
             limits: Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max },
             max_start_jump: 0.05,
             splice_tol: SPLICE_TOL,
+            max_track_error: sc.tracker.max_track_error_rad,
         }
     }
 }
@@ -69,6 +74,12 @@ pub enum Reason {
     SpliceRejected,
     /// A controlled stop of the run ([`Tracker::stop`]): brake to rest, then hold.
     Stop,
+    /// The plant's brakes engaged while the reference moved (its command watchdog fired):
+    /// brake to rest from where the arm is, then hold there.
+    PlantBrake,
+    /// The measured position left the reference by more than `max_track_error`: brake to
+    /// rest from where the arm is, then hold there.
+    TrackingError,
 }
 
 /// A mode switch, reported by the tick that made it.
@@ -137,6 +148,9 @@ pub struct CtrlStats {
     pub splices_taken: u64,
     /// Trajectories offered after a controlled stop (not followed).
     pub ignored_after_stop: u64,
+    /// Times the reference was re-anchored at the measured state (plant brakes, tracking
+    /// error); those that interrupted a tracked motion also count as safe holds.
+    pub reanchors: u64,
     pub track: ErrorStats,
 }
 
@@ -160,6 +174,11 @@ pub struct Tracker {
     tick: u64,
     /// A controlled stop was asked for: brake to rest, hold, follow nothing new.
     stopping: bool,
+    /// The newest state said the plant's brakes are engaged (they are at power-up).
+    plant_braked: bool,
+    /// The brakes engaged under a moving reference and are still engaged: the reference
+    /// follows the measured arm until they release.
+    follow_brake: bool,
     pub stats: CtrlStats,
 }
 
@@ -180,6 +199,8 @@ impl Tracker {
             prev_tau: JVec::zeros(),
             tick: 0,
             stopping: false,
+            plant_braked: true,
+            follow_brake: false,
             stats: CtrlStats::default(),
         }
     }
@@ -274,8 +295,36 @@ impl Tracker {
             (ControllerMode::Idle, Some((_, _, q, _))) => (q.into(), [0.0; NJ], [0.0; NJ]),
             _ => self.reference(ns),
         };
+        self.brake_from(p, v, a, reason, ns)
+    }
+
+    /// Re-anchors the reference at the measured state: a brake to rest from where the arm
+    /// is and how fast it moves (the arm is not where the reference is, and pulling it back
+    /// would yank it). Interrupting a tracked motion counts as a safe hold.
+    fn reanchor(&mut self, q: &JVec, qd: &JVec, reason: Reason, ns: u64) -> ModeEvent {
+        self.stats.reanchors += 1;
+        if self.mode == ControllerMode::Track {
+            self.stats.safe_hold_entries += 1;
+        }
+        self.brake_from((*q).into(), (*qd).into(), [0.0; NJ], reason, ns)
+    }
+
+    /// Brakes from (p, v, a) to rest within the limits (from `ns`), then holds where it stops.
+    fn brake_from(&mut self, p: [f64; NJ], v: [f64; NJ], a: [f64; NJ], reason: Reason, ns: u64) -> ModeEvent {
+        if self.plan_brake(p, v, a, ns) {
+            self.switch(ControllerMode::Brake, reason, ns)
+        } else {
+            // Cannot happen for a clamped finite state; hold where we are.
+            self.hold_q = p;
+            self.switch(ControllerMode::Hold, reason, ns)
+        }
+    }
+
+    /// Plans the brake from (p, v, a) to rest (starting at `ns`) and the hold where it ends;
+    /// false if no brake could be planned (the mode is left to the caller).
+    fn plan_brake(&mut self, p: [f64; NJ], v: [f64; NJ], a: [f64; NJ], ns: u64) -> bool {
         // Clamp the start into the generator's domain (a reference never
-        // exceeds the limits, but a measured fallback might).
+        // exceeds the limits, but a measured state might).
         let mut cur = KinState { p, v, a };
         for i in 0..NJ {
             cur.v[i] = cur.v[i].clamp(-self.cfg.limits.v_max[i], self.cfg.limits.v_max[i]);
@@ -292,13 +341,9 @@ impl Tracker {
                 self.brake = b;
                 self.brake_start_ns = ns;
                 self.hold_q = b.final_state().p;
-                self.switch(ControllerMode::Brake, reason, ns)
+                true
             }
-            Err(_) => {
-                // Cannot happen for a clamped finite state; hold where we are.
-                self.hold_q = p;
-                self.switch(ControllerMode::Hold, reason, ns)
-            }
+            Err(_) => false,
         }
     }
 
@@ -408,15 +453,22 @@ impl Tracker {
 
     /// One control tick. `state` is the newest valid state if one arrived
     /// since the last tick. Returns the command to publish.
-    pub fn tick(&mut self, state: Option<(u64, u64, &[f64; NJ], &[f64; NJ])>) -> TickOutput {
+    ///
+    /// A state is `(seq, stamp_ns, q, qd, brakes_engaged)`; the last is the plant's
+    /// `FLAG_BRAKE_ENGAGED`.
+    pub fn tick(&mut self, state: Option<(u64, u64, &[f64; NJ], &[f64; NJ], bool)>) -> TickOutput {
         self.tick += 1;
         self.stats.ticks += 1;
         let mut event = None;
+        let mut brakes_engaged = false;
         match state {
-            Some((seq, stamp, q, qd)) if self.last_state.is_none_or(|(s, ..)| seq > s) => {
+            Some((seq, stamp, q, qd, braked)) if self.last_state.is_none_or(|(s, ..)| seq > s) => {
                 let first = self.last_state.is_none();
                 self.last_state = Some((seq, stamp, JVec::from_row_slice(q), JVec::from_row_slice(qd)));
                 self.ticks_since_state = 0;
+                brakes_engaged = braked && !self.plant_braked;
+                self.follow_brake &= braked;
+                self.plant_braked = braked;
                 if first {
                     self.hold_q = *q;
                     event = Some(ModeEvent {
@@ -475,7 +527,8 @@ impl Tracker {
 
         // Tracking error of the measured state against the reference at its stamp.
         let dt_ns = (self.cfg.dt * 1e9).round() as u64;
-        if !stale && self.ticks_since_state == 0 && self.mode != ControllerMode::Idle {
+        let fresh = !stale && self.ticks_since_state == 0;
+        if fresh && self.mode != ControllerMode::Idle {
             let (pd, _, _) = self.reference(ns);
             let e = &mut self.stats.track;
             let mut m: f64 = 0.0;
@@ -487,6 +540,25 @@ impl Tracker {
             e.n += 1;
             e.max_abs = e.max_abs.max(m);
             e.last_abs = m;
+
+            // The arm is not where the reference is: the plant's brakes engaged under a
+            // moving reference (and hold it while they stay engaged), or it left the
+            // reference. Re-anchor at the measured state; never pull it back.
+            let moving = matches!(self.mode, ControllerMode::Track | ControllerMode::Brake);
+            if brakes_engaged && moving {
+                self.follow_brake = true;
+                event = Some(self.reanchor(&q, &qd, Reason::PlantBrake, ns));
+            } else if self.follow_brake {
+                // Still braked by the plant: the reference keeps following the arm.
+                match self.mode {
+                    ControllerMode::Brake => {
+                        self.plan_brake(q.into(), qd.into(), [0.0; NJ], ns);
+                    }
+                    _ => self.hold_q = q.into(),
+                }
+            } else if m > self.cfg.max_track_error {
+                event = Some(self.reanchor(&q, &qd, Reason::TrackingError, ns));
+            }
         }
 
         let tau = if stale {

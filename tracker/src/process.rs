@@ -45,12 +45,17 @@ pub struct TrackerReport {
     /// Max |q - goal| over joints at the end (NaN if no trajectory was received).
     pub final_error_rad: f64,
     pub safe_hold_entries: u64,
+    /// Times the reference was re-anchored where the arm measured (plant brakes engaged under a
+    /// moving reference, or the arm left it by more than `tracker.max_track_error_rad`).
+    pub reanchors: u64,
     pub stale_ticks: u64,
     pub trajectories_accepted: u64,
     pub rejected: Rejected,
     /// Trajectories ignored because they came from a publisher the run did not start (another
     /// `Source`, or a second publisher of the run's source).
     pub foreign_trajectories: u64,
+    /// Robot states ignored because they came from a second publisher (not the run's plant).
+    pub foreign_states: u64,
     pub events: Vec<ModeEvent>,
     pub events_dropped: u64,
     pub end_of_run_seen: bool,
@@ -59,7 +64,14 @@ pub struct TrackerReport {
 }
 
 fn log_event(e: &ModeEvent) {
-    let safe = matches!(e.reason, Reason::StaleState | Reason::InvalidTrajectory | Reason::SpliceRejected);
+    let safe = matches!(
+        e.reason,
+        Reason::StaleState
+            | Reason::InvalidTrajectory
+            | Reason::SpliceRejected
+            | Reason::PlantBrake
+            | Reason::TrackingError
+    );
     eprintln!(
         "tracker: {}{:?} -> {:?} ({:?}) at plant t = {:.3} s",
         if safe { "SAFE HOLD: " } else { "" },
@@ -138,6 +150,11 @@ pub fn run(
     let mut pacer = Pacer::new(period_ns, sc.tracker.phase_us * 1000, 2_000_000);
     let wait_ns = sc.tracker.state_wait_us * 1000;
     let mut last_seq: Option<u64> = None;
+    // The plant this run started: the first publisher of states. A second one (a rogue `sim`
+    // on the run) is ignored and counted; if ours is gone from the service, the next one
+    // takes over (a restarted driver).
+    let mut state_lock: Option<u128> = None;
+    let mut foreign_states_seen = 0u64;
     let mut last_q = [f64::NAN; NJ];
     let mut end_of_run_seen = false;
     let mut stopped_by_signal = false;
@@ -160,7 +177,9 @@ pub fn run(
                 wake.record_ns(w.latency_ns());
                 let until = w.deadline_ns + wait_ns;
                 loop {
-                    if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())?
+                    if state_sub
+                        .latest_from(&mut state, &lim, |o| state_lock.is_none_or(|l| l == o))
+                        .map_err(|e| e.to_string())?
                         && last_seq.is_none_or(|s| state.header.seq > s)
                     {
                         fresh = true;
@@ -174,7 +193,9 @@ pub fn run(
             Mode::Lockstep => {
                 let mut spins = 0u32;
                 loop {
-                    if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())?
+                    if state_sub
+                        .latest_from(&mut state, &lim, |o| state_lock.is_none_or(|l| l == o))
+                        .map_err(|e| e.to_string())?
                         && last_seq.is_none_or(|s| state.header.seq > s)
                     {
                         fresh = true;
@@ -194,6 +215,19 @@ pub fn run(
         let now = mono_ns();
         if fresh {
             last_fresh_ns = now;
+            state_lock.get_or_insert(state_sub.origin);
+        }
+        if state_sub.foreign > foreign_states_seen {
+            if foreign_states_seen == 0 {
+                eprintln!("tracker: ignoring robot states from a publisher this run did not start");
+            }
+            foreign_states_seen = state_sub.foreign;
+            // Gone only if the service says so (an error listing it is no reason to switch).
+            let gone = state_lock
+                .is_some_and(|l| bus.publisher_ids::<RobotState>().is_ok_and(|ids| !ids.contains(&l)));
+            if gone {
+                state_lock = None;
+            }
         }
         // A stop: our own signal, or the plant's (FLAG_STOPPING in its state).
         let plant_stops = fresh && state.header.flags & FLAG_STOPPING != 0;
@@ -226,7 +260,7 @@ pub fn run(
                 // followed is gone from the service) takes over; a rogue one (ours is still
                 // there) does not.
                 let gone = source_lock
-                    .is_some_and(|l| !bus.publisher_ids::<Trajectory>().is_ok_and(|ids| ids.contains(&l)));
+                    .is_some_and(|l| bus.publisher_ids::<Trajectory>().is_ok_and(|ids| !ids.contains(&l)));
                 if gone {
                     source_lock = Some(traj_sub.origin);
                     ours = true;
@@ -252,7 +286,8 @@ pub fn run(
         }
 
         // 3. Control.
-        let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd));
+        let braked = state.header.flags & FLAG_BRAKE_ENGAGED != 0;
+        let input = fresh.then_some((state.header.seq, state.header.stamp_ns, &state.q, &state.qd, braked));
         let out = ctrl.tick(input);
         if fresh
             && samples.len() < samples.capacity()
@@ -332,10 +367,12 @@ pub fn run(
         tracking_error_rad: ErrorSummary { rms: ctrl.stats.track.rms(), max: ctrl.stats.track.max_abs },
         final_error_rad,
         safe_hold_entries: ctrl.stats.safe_hold_entries,
+        reanchors: ctrl.stats.reanchors,
         stale_ticks: ctrl.stats.stale_ticks,
         trajectories_accepted: ctrl.stats.trajectories_accepted,
         rejected: Rejected { state: state_sub.rejected, trajectory: traj_sub.rejected },
         foreign_trajectories,
+        foreign_states: state_sub.foreign,
         events,
         events_dropped,
         end_of_run_seen,

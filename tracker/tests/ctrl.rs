@@ -42,7 +42,8 @@ impl Loop {
     /// One tick; returns the controller output.
     fn tick(&mut self, deliver: bool) -> dkrrt_tracker::ctrl::TickOutput {
         let m = self.plant.measured();
-        let out = self.ctrl.tick(deliver.then_some((m.tick, m.tick * 1_000_000, &m.q, &m.qd)));
+        let out =
+            self.ctrl.tick(deliver.then_some((m.tick, m.tick * 1_000_000, &m.q, &m.qd, m.brake_engaged)));
         if deliver {
             self.plant.offer_command(out.state_seq, &out.tau);
         }
@@ -330,7 +331,6 @@ fn a_controlled_stop_brakes_to_rest_within_the_limits_and_follows_nothing_after(
     // The brake's reference respects the motion limits (velocity, acceleration, jerk), and
     // the arm follows it to rest.
     let lim = l.cfg.limits;
-    let mut prev: Option<[f64; NJ]> = None;
     let mut prev_a: Option<[f64; NJ]> = None;
     let mut done = None;
     for k in 0..3000u64 {
@@ -345,7 +345,6 @@ fn a_controlled_stop_brakes_to_rest_within_the_limits_and_follows_nothing_after(
             }
         }
         prev_a = Some(a);
-        prev = Some(v);
         // A valid new trajectory offered during the stop is not followed.
         if k == 100 {
             let mut t = l.traj.clone();
@@ -357,11 +356,134 @@ fn a_controlled_stop_brakes_to_rest_within_the_limits_and_follows_nothing_after(
             done = Some(k);
         }
     }
-    let _ = prev;
     assert!(done.is_some(), "the brake ended");
     assert_eq!(l.ctrl.mode(), ControllerMode::Hold);
     assert_eq!(l.ctrl.stats.ignored_after_stop, 1);
     assert!(l.ctrl.stopping());
     let (_, qd) = l.plant.true_state();
     assert!(qd.amax() < 1e-6, "at rest: {qd}");
+}
+
+/// Largest |qd_i| / v_max_i of the plant's true state.
+fn speed_ratio(l: &Loop) -> f64 {
+    let (_, qd) = l.plant.true_state();
+    (0..NJ).map(|i| qd[i].abs() / l.cfg.limits.v_max[i]).fold(0.0, f64::max)
+}
+
+#[test]
+fn plant_brakes_under_a_stalled_tracker_reanchor_the_reference_where_the_arm_stopped() {
+    // A loaded machine: the tracker misses 200 ticks mid-motion, the plant's watchdog brakes
+    // the arm to rest while the reference runs on. When the tracker wakes up, pulling the arm
+    // back onto the reference would drive it far beyond its velocity limit; it must instead
+    // brake from where the arm is (and follow it while the brakes hold), then hold there.
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    assert!(speed_ratio(&l) > 0.5, "moving at full speed when the stall comes");
+    for _ in 0..200 {
+        l.plant.step(); // the tracker does not run
+    }
+    assert!(l.plant.brake_engaged(), "the watchdog braked the arm");
+    let (q_wake, qd_wake) = l.plant.true_state();
+    let (pd, _, _) = l.ctrl.desired(l.plant.tick() * 1_000_000).unwrap();
+    let behind = (0..NJ).map(|i| (pd[i] - q_wake[i]).abs()).fold(0.0, f64::max);
+    assert!(behind > 0.01, "the reference ran {behind} rad ahead of the braked arm");
+
+    let mut reasons = Vec::new();
+    let mut peak: f64 = 0.0;
+    for _ in 0..3000 {
+        if let Some(e) = l.tick(true).event {
+            reasons.push(e.reason);
+        }
+        peak = peak.max(speed_ratio(&l));
+    }
+    assert_eq!(reasons.first(), Some(&Reason::PlantBrake), "events: {reasons:?}");
+    assert_eq!(l.ctrl.mode(), ControllerMode::Hold, "events: {reasons:?}");
+    assert!(peak <= 1.0, "peak joint speed {peak} x its limit after the stall");
+    assert_eq!(l.ctrl.stats.safe_hold_entries, 1);
+    let (q, qd) = l.plant.true_state();
+    assert!(qd.amax() < 1e-6, "at rest: {qd}");
+    // Held where a brake within the limits from the arm's state at wake-up ends (not pulled
+    // back to the reference): no further than that brake's distance.
+    let lim = l.cfg.limits;
+    for i in 0..NJ {
+        let v = qd_wake[i].abs();
+        let reach = v * v / (2.0 * lim.a_max[i]) + v * lim.a_max[i] / lim.j_max[i] + 1e-3;
+        let moved = (q[i] - q_wake[i]).abs();
+        assert!(
+            moved <= reach,
+            "joint {i} moved {moved} rad after waking at {v} rad/s (brake reach {reach})"
+        );
+    }
+    // A plan from there is accepted.
+    let mut t = Box::new(<Trajectory as Zeroed>::zeroed());
+    dkrrt_planner::goto::plan(
+        &KinState::rest(q.into()),
+        &l.traj.sample(l.traj.duration_s).p,
+        &l.cfg.limits,
+        1e-3,
+        77,
+        (l.plant.tick() - 1) * 1_000_000,
+        &mut t,
+    )
+    .unwrap();
+    let e = l.ctrl.set_trajectory(&t).expect("a plan from where the arm is");
+    assert_eq!(e.to, ControllerMode::Track);
+}
+
+#[test]
+fn a_measured_state_off_the_reference_reanchors_a_brake_there() {
+    // The arm measured 0.03 rad off a moving reference (a push, a slipped joint): brake to
+    // rest from the measured state, do not pull it back.
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    let m = l.plant.measured();
+    let mut q = m.q;
+    q[2] += 3.0 * l.cfg.max_track_error;
+    let out = l.ctrl.tick(Some((m.tick, m.tick * 1_000_000, &q, &m.qd, false)));
+    let e = out.event.expect("re-anchored");
+    assert_eq!(
+        (e.from, e.to, e.reason),
+        (ControllerMode::Track, ControllerMode::Brake, Reason::TrackingError)
+    );
+    assert_eq!((l.ctrl.stats.reanchors, l.ctrl.stats.safe_hold_entries), (1, 1));
+    // The brake starts at the measured state, within the limits.
+    let (p, v, _) = l.ctrl.desired(m.tick * 1_000_000).unwrap();
+    for i in 0..NJ {
+        assert!((p[i] - q[i]).abs() < 1e-12, "starts at the measured position");
+        assert!((v[i] - m.qd[i]).abs() <= 1e-12 || v[i].abs() == l.cfg.limits.v_max[i]);
+    }
+    // Within the threshold nothing happens.
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    let m = l.plant.measured();
+    let mut q = m.q;
+    q[2] += 0.5 * l.cfg.max_track_error;
+    assert!(l.ctrl.tick(Some((m.tick, m.tick * 1_000_000, &q, &m.qd, false))).event.is_none());
+    assert_eq!(l.ctrl.mode(), ControllerMode::Track);
+}
+
+#[test]
+fn brakes_engaged_at_power_up_are_not_a_fault() {
+    // The plant starts braked (until commands flow): a trajectory accepted then is tracked.
+    let mut l = setup(true);
+    assert!(l.plant.brake_engaged());
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..100 {
+        l.tick(true);
+    }
+    assert_eq!(l.ctrl.mode(), ControllerMode::Track);
+    assert_eq!(l.ctrl.stats.reanchors, 0);
 }

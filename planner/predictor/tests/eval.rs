@@ -24,12 +24,15 @@ fn small_study() {
         assert!((0.0..=1.0).contains(&r.contained), "{r:?}");
         assert!(r.bound_m > 0.0 && r.surface_err_m >= 0.0 && r.bound_ratio > 0.0, "{r:?}");
     }
-    // The online-calibrated bound of the shipped method contains the true shape most of the
-    // time even in this tiny study (the README's medium study states the figures).
+    // The online-calibrated bound of the shipped method contains the true shape (it measures
+    // 97.5-100 % per scene and horizon in this small, seeded study; the README's medium study
+    // states the figures), and is not just huge: at most 30x the median surface error (it
+    // measures 5-25x).
     for scene in &cfg.scenes {
         for &h in &cfg.horizons {
             let r = row(&rows, scene, "deep-koopman-online", h);
-            assert!(r.contained >= 0.9, "{r:?}");
+            assert!(r.contained >= 0.97, "{r:?}");
+            assert!(r.bound_ratio <= 30.0, "{r:?}");
         }
     }
     let cal = dkrrt_predictor::eval::calibration_text(&rows, "deep-koopman-online");

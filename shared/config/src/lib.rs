@@ -272,6 +272,10 @@ pub struct TrackerCfg {
     #[serde(deserialize_with = "exact::array")]
     pub kd: [f64; NJ],
     pub stale_ticks: u32,
+    /// A measured joint further than this from the reference, rad: the tracker brakes to
+    /// rest from where the arm is (re-anchors) instead of pulling it back.
+    #[serde(default = "default_max_track_error")]
+    pub max_track_error_rad: f64,
     pub phase_us: u64,
     pub state_wait_us: u64,
     pub predict: bool,
@@ -407,6 +411,10 @@ pub const KD_DT_MAX: f64 = 0.5;
 /// The largest tracker gains (kp, kd) at `control_hz`: `kp · dt² <= KP_DT2_MAX` (a bandwidth
 /// of at most ~0.22 rad per tick) and `kd · dt <= KD_DT_MAX`. At 1 kHz: kp <= 50 000 1/s²,
 /// kd <= 500 1/s (the default is 400 / 40).
+fn default_max_track_error() -> f64 {
+    0.01
+}
+
 pub fn gain_limits(control_hz: f64) -> (f64, f64) {
     (KP_DT2_MAX * control_hz * control_hz, KD_DT_MAX * control_hz)
 }
@@ -685,6 +693,17 @@ impl Scenario {
                 format!("must be <= {max_stale} (0.1 s): a longer blind interval is no safe hold"),
             ));
         }
+        // Above the measurement noise (a false re-anchor at 6 sigma is rare), and small
+        // enough that pulling the arm back across it stays a small correction.
+        let min_err = (6.0 * self.sim.noise_q_std).max(1e-4);
+        if !(self.tracker.max_track_error_rad >= min_err) {
+            return Err(c.fail(
+                "tracker.max_track_error_rad",
+                self.tracker.max_track_error_rad,
+                format!("must be >= {min_err} rad (1e-4, and 6 x sim.noise_q_std)"),
+            ));
+        }
+        c.at_most("tracker.max_track_error_rad", self.tracker.max_track_error_rad, 0.3, "rad")?;
         let period_us = 1e6 / self.run.control_hz;
         if (self.tracker.phase_us + self.tracker.state_wait_us) as f64 >= period_us {
             return Err(c.fail(

@@ -54,6 +54,10 @@ fn physically_senseless_values_are_refused_naming_the_field() {
         ("brake_damping = 200.0", "brake_damping = 0.0", "sim.brake_damping"),
         ("pos_sigma_m = 0.01", "pos_sigma_m = 1e9", "debris.pos_sigma_m"),
         ("dt_s = 0.1", "dt_s = 1e9", "predictor.dt_s"),
+        ("max_track_error_rad = 0.01", "max_track_error_rad = 5.0", "tracker.max_track_error_rad"),
+        ("max_track_error_rad = 0.01", "max_track_error_rad = nan", "tracker.max_track_error_rad"),
+        // Below the measurement noise it would trip on noise alone.
+        ("noise_q_std = 0.0", "noise_q_std = 0.01", "tracker.max_track_error_rad"),
     ] {
         let e = refused(from, to);
         assert!(e.contains(field), "{to}: {e}");

@@ -259,7 +259,16 @@ impl Bus {
             .buffer_size(T::BUFFER)
             .create()
             .map_err(|e| err(format!("subscriber on {}", T::SERVICE), e))?;
-        Ok(Sub { port, received: 0, rejected: 0, lost: 0, last: None, last_error: None, origin: 0 })
+        Ok(Sub {
+            port,
+            received: 0,
+            rejected: 0,
+            lost: 0,
+            last: None,
+            last_error: None,
+            origin: 0,
+            foreign: 0,
+        })
     }
 
     pub fn config(&self) -> &Config {
@@ -372,6 +381,8 @@ pub struct Sub<T: Topic> {
     /// iceoryx2's unique id of the publisher of the last valid sample handed out (after
     /// [`Sub::latest`]: of the newest one). Tells two publishers of one `Source` apart.
     pub origin: u128,
+    /// Valid samples dropped by [`Sub::latest_from`] because their publisher was not accepted.
+    pub foreign: u64,
 }
 
 impl<T: Topic> Sub<T> {
@@ -389,6 +400,35 @@ impl<T: Topic> Sub<T> {
         Ok(got)
     }
 
+    /// Like [`Sub::latest`], from the publishers `accept` takes (by iceoryx2 publisher id, as
+    /// in [`Sub::origin`]) only: valid samples of any other publisher are counted in
+    /// [`Sub::foreign`] and dropped (a rogue publisher on a single-publisher service).
+    pub fn latest_from(
+        &mut self,
+        out: &mut T,
+        lim: &ContractLimits,
+        accept: impl Fn(u128) -> bool,
+    ) -> Result<bool, BusError> {
+        let mut got = None;
+        let mut foreign = 0;
+        self.drain(
+            |m| m.validate(lim),
+            |m, origin| {
+                if accept(origin) {
+                    *out = *m;
+                    got = Some(origin);
+                } else {
+                    foreign += 1;
+                }
+            },
+        )?;
+        self.foreign += foreign;
+        if let Some(o) = got {
+            self.origin = o;
+        }
+        Ok(got.is_some())
+    }
+
     /// Like [`Sub::latest`] but calls `f` for every valid sample in order.
     pub fn for_each(&mut self, lim: &ContractLimits, f: impl FnMut(&T)) -> Result<usize, BusError> {
         self.for_each_checked(|m| m.validate(lim), f)
@@ -404,6 +444,24 @@ impl<T: Topic> Sub<T> {
         check: impl Fn(&T) -> Result<(), ValidationError>,
         mut f: impl FnMut(&T),
     ) -> Result<usize, BusError> {
+        let mut origin = None;
+        let n = self.drain(check, |m, o| {
+            origin = Some(o);
+            f(m)
+        })?;
+        if let Some(o) = origin {
+            self.origin = o;
+        }
+        Ok(n)
+    }
+
+    /// Drains the queue: `f(sample, publisher id)` for every sample `check` passes; the
+    /// others are counted as rejected.
+    fn drain(
+        &mut self,
+        check: impl Fn(&T) -> Result<(), ValidationError>,
+        mut f: impl FnMut(&T, u128),
+    ) -> Result<usize, BusError> {
         let mut n = 0;
         while let Some(sample) =
             self.port.receive().map_err(|e| err(format!("receive on {}", T::SERVICE), e))?
@@ -418,8 +476,7 @@ impl<T: Topic> Sub<T> {
             self.last = Some((h.source, h.seq));
             match check(sample.payload()) {
                 Ok(()) => {
-                    self.origin = sample.header().publisher_id().value();
-                    f(sample.payload());
+                    f(sample.payload(), sample.header().publisher_id().value());
                     n += 1;
                 }
                 Err(e) => {
