@@ -276,6 +276,12 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     if let Some(p) = sc.urdf_path() {
         resolved.robot.urdf = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
     }
+    resolved.robot.package_path = sc
+        .urdf_options()
+        .package_path
+        .into_iter()
+        .map(|p| std::fs::canonicalize(&p).unwrap_or(p).display().to_string())
+        .collect();
     if let Some(p) = sc.debris_scene_path() {
         resolved.debris.scene = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
     }

@@ -325,6 +325,10 @@ fn main() -> ExitCode {
     let res: Result<bool, String> = (|| match cli.cmd {
         Cmd::Launch { common, report, run, figures, record } => {
             let sc = scenario(&common)?;
+            // What loading the arm's URDF ignored or assumed, said once.
+            for n in sc.load_arm().map_err(|e| e.to_string())?.load_notes() {
+                println!("dkrrt: arm: {}", dkrrt_io::printable(n));
+            }
             // Where the report goes is checked before anything starts.
             dkrrt::launch::check_writable(&report)
                 .map_err(|e| format!("--report {}: {e}", report.display()))?;

@@ -103,6 +103,10 @@ fn ser_mode<S: serde::Serializer>(m: &ControllerMode, s: S) -> Result<S::Ok, S::
     })
 }
 
+/// A measured state handed to [`Tracker::tick`]: `(seq, stamp_ns, q, qd, brakes_engaged)`,
+/// the last being the plant's `FLAG_BRAKE_ENGAGED`.
+pub type StateIn<'a> = (u64, u64, &'a [f64; NJ], &'a [f64; NJ], bool);
+
 /// The command of one tick.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TickOutput {
@@ -453,10 +457,8 @@ impl Tracker {
 
     /// One control tick. `state` is the newest valid state if one arrived
     /// since the last tick. Returns the command to publish.
-    ///
-    /// A state is `(seq, stamp_ns, q, qd, brakes_engaged)`; the last is the plant's
-    /// `FLAG_BRAKE_ENGAGED`.
-    pub fn tick(&mut self, state: Option<(u64, u64, &[f64; NJ], &[f64; NJ], bool)>) -> TickOutput {
+    /// See [`StateIn`] for what a state carries.
+    pub fn tick(&mut self, state: Option<StateIn<'_>>) -> TickOutput {
         self.tick += 1;
         self.stats.ticks += 1;
         let mut event = None;

@@ -10,17 +10,41 @@ impl Scenario {
     pub fn load_arm(&self) -> Result<ArmModel, ConfigError> {
         let mut model = match self.urdf_path() {
             None => ArmModel::default_arm(),
-            Some(p) => ArmModel::from_urdf_file(&p).map_err(|e| ConfigError::Invalid {
-                origin: self.name.clone(),
-                field: "robot.urdf".into(),
-                value: p.display().to_string(),
-                reason: e.to_string(),
-            })?,
+            Some(p) => {
+                ArmModel::from_urdf_file_with(&p, &self.urdf_options()).map_err(|e| ConfigError::Invalid {
+                    origin: self.name.clone(),
+                    field: "robot.urdf".into(),
+                    value: p.display().to_string(),
+                    reason: e.to_string(),
+                })?
+            }
         };
         let g = self.robot.gravity;
         model.set_gravity(nalgebra::Vector3::new(g[0], g[1], g[2]));
         self.validate(&arm_limits(&model))?;
         Ok(model)
+    }
+}
+
+impl Scenario {
+    /// How the scenario's URDF is read: `robot.base_link`, `robot.tip_link`,
+    /// `robot.package_path` (relative entries from the scenario's folder).
+    pub fn urdf_options(&self) -> dkrrt_model::UrdfOptions {
+        let opt = |s: &str| (!s.is_empty()).then(|| s.to_string());
+        dkrrt_model::UrdfOptions {
+            base_link: opt(&self.robot.base_link),
+            tip_link: opt(&self.robot.tip_link),
+            package_path: self
+                .robot
+                .package_path
+                .iter()
+                .map(|d| match (&self.base_dir, std::path::Path::new(d).is_relative()) {
+                    (Some(b), true) => b.join(d),
+                    _ => std::path::PathBuf::from(d),
+                })
+                .collect(),
+            urdf_dir: None,
+        }
     }
 }
 

@@ -242,6 +242,17 @@ pub struct RobotCfg {
     pub urdf: String,
     #[serde(deserialize_with = "exact::array")]
     pub gravity: [f64; 3],
+    /// First link of the arm's chain in the URDF (its frame is the base frame); empty: the root.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub base_link: String,
+    /// Last link of the chain (the end-effector frame); empty: the deepest link of the
+    /// actuated chain.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub tip_link: String,
+    /// Directories searched for `package://NAME/...` meshes (each holding package folders),
+    /// before `ROS_PACKAGE_PATH`; relative ones are taken from the scenario's folder.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub package_path: Vec<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

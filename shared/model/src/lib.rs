@@ -35,6 +35,7 @@
 pub mod dynamics;
 pub mod ik;
 pub mod kinematics;
+pub mod mesh;
 pub mod model;
 pub mod spatial;
 pub mod urdf;
@@ -51,4 +52,4 @@ pub type JMat = SMatrix<f64, NJ, NJ>;
 pub use ik::{IkError, IkOptions, IkSolution};
 pub use kinematics::Jacobian;
 pub use model::{ArmModel, JointLimits, LinkCapsule, LinkInertial};
-pub use urdf::{ModelError, DEFAULT_ARM_URDF};
+pub use urdf::{ModelError, UrdfOptions, DEFAULT_ARM_URDF};

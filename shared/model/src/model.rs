@@ -112,6 +112,8 @@ pub struct ArmModel {
     pub(crate) ee_pos: Vector3<f64>,
     pub(crate) capsules: [LinkCapsule; NJ],
     pub(crate) inertials: [LinkInertial; NJ],
+    /// What loading ignored or assumed (branches off the chain, fitted collision shapes, …).
+    pub(crate) notes: Vec<String>,
 }
 
 impl ArmModel {
@@ -159,6 +161,13 @@ impl ArmModel {
     /// Inertial parameters of each moving body (fixed children merged), in link frames.
     pub fn link_inertials(&self) -> &[LinkInertial; NJ] {
         &self.inertials
+    }
+
+    /// What loading the URDF ignored or assumed, one sentence each (side branches behind a
+    /// moving joint, mimic joints, collision capsules fitted around boxes/meshes/visuals, the
+    /// tip chosen where fixed frames branch). Empty for the shipped arm.
+    pub fn load_notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// Total mass of the moving bodies (kg).

@@ -204,15 +204,13 @@ fn structural_errors_are_typed() {
         ModelError::WrongDof { found: 5, expected: 6 } => {}
         e => panic!("{e:?}"),
     }
-    // Branching: a second child joint on upper_boom.
+    // A fixed side branch on upper_boom (a massless camera frame) is part of that body: the
+    // model is the same.
     let branch = r#"<link name="camera"/><joint name="camera_mount" type="fixed"><parent link="upper_boom"/><child link="camera"/></joint></robot>"#;
-    match err(&DEFAULT_ARM_URDF.replacen("</robot>", branch, 1)) {
-        ModelError::Branching { link, joints } => {
-            assert_eq!(link, "upper_boom");
-            assert!(joints.contains(&"camera_mount".to_string()));
-        }
-        e => panic!("{e:?}"),
-    }
+    let m = ArmModel::from_urdf_str(&DEFAULT_ARM_URDF.replacen("</robot>", branch, 1)).unwrap();
+    let d = ArmModel::default_arm();
+    let q = JVec::from_column_slice(&[0.3, -0.4, 0.9, 0.1, 0.5, -0.2]);
+    assert_eq!((m.fk(&q), m.mass_matrix(&q)), (d.fk(&q), d.mass_matrix(&q)));
     // A second root.
     match err(&DEFAULT_ARM_URDF.replacen("</robot>", r#"<link name="floating"/></robot>"#, 1)) {
         ModelError::MultipleRoots { links } => assert!(links.contains(&"floating".to_string())),
@@ -256,19 +254,25 @@ fn inertia_and_collision_errors_name_the_link() {
     // Negative mass.
     let bad = edit(r#"<mass value="22.0"/>"#, r#"<mass value="-22.0"/>"#);
     assert!(matches!(err(&bad), ModelError::InvalidInertia { ref link, .. } if link == "lower_boom"));
-    // Box collision.
-    let bad = edit(
+    // A box collision gets a fitted capsule that encloses it (with a note).
+    let boxed = edit(
         r#"<geometry><cylinder radius="0.09" length="1.20"/></geometry>"#,
         r#"<geometry><box size="0.1 0.1 1.2"/></geometry>"#,
     );
-    match err(&bad) {
-        ModelError::UnsupportedCollision { link, geometry } => {
-            assert_eq!(link, "lower_boom");
-            assert_eq!(geometry, "box");
-        }
-        e => panic!("{e:?}"),
+    let m = ArmModel::from_urdf_str(&boxed).unwrap();
+    let c = m.collision_capsules()[2];
+    assert!(
+        m.load_notes().iter().any(|n| n.contains("lower_boom") && n.contains("fitted")),
+        "{:?}",
+        m.load_notes()
+    );
+    // The box's corners (origin 0.5 0 0, rotated so its long side lies along x).
+    for corner in [[-0.1, -0.05, -0.05], [1.1, 0.05, 0.05], [1.1, -0.05, 0.05], [-0.1, 0.05, -0.05]] {
+        let p = nalgebra::Point3::new(corner[0], corner[1], corner[2]);
+        assert!(seg_dist(&p, &c.a, &c.b) <= c.radius + 1e-9, "corner {corner:?} outside {c:?}");
     }
-    // Missing collision on a moving link.
+    assert!(c.radius < 0.0708 + 1e-9 && (c.b - c.a).norm() <= 1.2 + 1e-9, "tight: {c:?}");
+    // No collision on a moving link: not a refusal; no geometry at all is a point, with a note.
     let no_col = edit(
         r#"<collision>
       <origin xyz="0.50 0 0" rpy="0 1.5707963267948966 0"/>
@@ -276,22 +280,29 @@ fn inertia_and_collision_errors_name_the_link() {
     </collision>"#,
         "",
     );
-    match err(&no_col) {
-        ModelError::MissingCollision { link } => assert_eq!(link, "lower_boom"),
-        e => panic!("{e:?}"),
-    }
-    // Collision on both the wrist roll link and its fixed end effector.
+    let m = ArmModel::from_urdf_str(&no_col).unwrap();
+    assert_eq!(m.collision_capsules()[2].radius, 0.0);
+    assert!(
+        m.load_notes().iter().any(|n| n.contains("lower_boom") && n.contains("not checked")),
+        "{:?}",
+        m.load_notes()
+    );
+    // Collision on both the wrist roll link and its fixed end effector: one capsule around both.
     let two = edit(
         r#"<link name="end_effector">"#,
         r#"<link name="end_effector"><collision><geometry><sphere radius="0.1"/></geometry></collision>"#,
     );
-    match err(&two) {
-        ModelError::MultipleCollisions { link, other } => {
-            assert_eq!(link, "wrist_roll_link");
-            assert_eq!(other, "end_effector");
-        }
-        e => panic!("{e:?}"),
+    let m = ArmModel::from_urdf_str(&two).unwrap();
+    let d = ArmModel::default_arm();
+    let (c, old) = (m.collision_capsules()[5], d.collision_capsules()[5]);
+    for p in [old.a, old.b] {
+        assert!(seg_dist(&p, &c.a, &c.b) + old.radius <= c.radius + 1e-9, "{c:?} encloses {old:?}");
     }
+    assert!(
+        m.load_notes().iter().any(|n| n.contains("wrist_roll_link") && n.contains("2 collision")),
+        "{:?}",
+        m.load_notes()
+    );
     // A massless last link has no inertia about its axis: singular M.
     let xml = r#"<robot name="massless">
       <link name="b"/>
@@ -342,4 +353,12 @@ fn sphere_and_capsule_collisions_become_capsules() {
     assert_eq!(c[3].a, c[3].b);
     assert_eq!(c[3].radius, 0.12);
     let _ = JVec::zeros();
+}
+
+/// Distance from `p` to the segment `a`-`b`.
+fn seg_dist(p: &nalgebra::Point3<f64>, a: &nalgebra::Point3<f64>, b: &nalgebra::Point3<f64>) -> f64 {
+    let ab = b - a;
+    let t =
+        if ab.norm_squared() > 0.0 { ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    (p - (a + ab * t)).norm()
 }
