@@ -52,6 +52,17 @@ impl Loop {
     }
 }
 
+/// The closed loop 1.5 s into tracking the straight trajectory (moving at full speed).
+fn mid_motion() -> Loop {
+    let mut l = setup(true);
+    l.tick(true);
+    l.ctrl.set_trajectory(&l.traj);
+    for _ in 0..1500 {
+        l.tick(true);
+    }
+    l
+}
+
 #[test]
 fn tracks_a_jerk_limited_trajectory_to_the_goal() {
     let mut l = setup(true);
@@ -316,12 +327,7 @@ fn a_splice_that_does_not_continue_the_reference_is_rejected_and_the_arm_brakes(
 
 #[test]
 fn a_controlled_stop_brakes_to_rest_within_the_limits_and_follows_nothing_after() {
-    let mut l = setup(true);
-    l.tick(true);
-    l.ctrl.set_trajectory(&l.traj);
-    for _ in 0..1500 {
-        l.tick(true); // mid-motion
-    }
+    let mut l = mid_motion();
     let (_, qd0) = l.plant.true_state();
     assert!(qd0.amax() > 0.01, "moving when the stop comes: {qd0}");
     let e = l.ctrl.stop().expect("a tracked motion brakes");
@@ -376,12 +382,7 @@ fn plant_brakes_under_a_stalled_tracker_reanchor_the_reference_where_the_arm_sto
     // the arm to rest while the reference runs on. When the tracker wakes up, pulling the arm
     // back onto the reference would drive it far beyond its velocity limit; it must instead
     // brake from where the arm is (and follow it while the brakes hold), then hold there.
-    let mut l = setup(true);
-    l.tick(true);
-    l.ctrl.set_trajectory(&l.traj);
-    for _ in 0..1500 {
-        l.tick(true);
-    }
+    let mut l = mid_motion();
     assert!(speed_ratio(&l) > 0.5, "moving at full speed when the stall comes");
     for _ in 0..200 {
         l.plant.step(); // the tracker does not run
@@ -438,12 +439,7 @@ fn plant_brakes_under_a_stalled_tracker_reanchor_the_reference_where_the_arm_sto
 fn a_measured_state_off_the_reference_reanchors_a_brake_there() {
     // The arm measured 0.03 rad off a moving reference (a push, a slipped joint): brake to
     // rest from the measured state, do not pull it back.
-    let mut l = setup(true);
-    l.tick(true);
-    l.ctrl.set_trajectory(&l.traj);
-    for _ in 0..1500 {
-        l.tick(true);
-    }
+    let mut l = mid_motion();
     let m = l.plant.measured();
     let mut q = m.q;
     q[2] += 3.0 * l.cfg.max_track_error;
@@ -461,12 +457,7 @@ fn a_measured_state_off_the_reference_reanchors_a_brake_there() {
         assert!((v[i] - m.qd[i]).abs() <= 1e-12 || v[i].abs() == l.cfg.limits.v_max[i]);
     }
     // Within the threshold nothing happens.
-    let mut l = setup(true);
-    l.tick(true);
-    l.ctrl.set_trajectory(&l.traj);
-    for _ in 0..1500 {
-        l.tick(true);
-    }
+    let mut l = mid_motion();
     let m = l.plant.measured();
     let mut q = m.q;
     q[2] += 0.5 * l.cfg.max_track_error;
