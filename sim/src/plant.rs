@@ -151,6 +151,14 @@ impl Plant {
         self.brake
     }
 
+    /// Forgets the commands offered and applied (an arm told to hold: what it was sent
+    /// before is not applied after). Until a new command arrives the brakes (engaged by the
+    /// caller, or by the watchdog) hold the arm.
+    pub fn drop_commands(&mut self) {
+        self.pending = None;
+        self.active = None;
+    }
+
     /// Engages the joint brakes now (the end of a controlled stop whose controller did not
     /// bring the arm to rest); commands flowing again release them, as after the watchdog.
     pub fn engage_brakes(&mut self) {

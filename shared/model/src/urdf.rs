@@ -244,7 +244,15 @@ impl ArmModel {
     /// Load from URDF XML text with `opts`.
     pub fn from_urdf_str_with(xml: &str, opts: &UrdfOptions) -> Result<Self, ModelError> {
         let robot = urdf_rs::read_from_string(xml).map_err(|e| ModelError::Parse(e.to_string()))?;
-        build(&robot, opts)
+        let mut model = build(&robot, opts)?;
+        // The parser drops them: say so (the tracker commands joint torques directly).
+        let transmissions = xml.matches("<transmission").count();
+        if transmissions > 0 {
+            model.notes.push(format!(
+                "{transmissions} <transmission> element(s) ignored (joint torques are commanded directly)"
+            ));
+        }
+        Ok(model)
     }
 }
 

@@ -73,6 +73,7 @@ fn a_ur_like_tree_with_package_meshes_loads_as_pinocchio_would() {
     // The default tip: wrist_3_link, where the fixed frames ee_link and tool0 branch (noted).
     assert_eq!(m.ee_link_name(), "wrist_3_link");
     assert!(notes.contains("tip link `wrist_3_link`") && notes.contains("tool0"), "{notes}");
+    assert!(notes.contains("2 <transmission> element(s) ignored"), "{notes}");
     // The prismatic finger is off the chain: ignored, noted, not a refusal.
     assert!(notes.contains("finger_joint") && notes.contains("ignored"), "{notes}");
     // Moving mass: the six links, the camera on the forearm and the gripper base on tool0
