@@ -14,6 +14,8 @@
 
 use std::fmt;
 
+pub mod link;
+
 /// Joints per arm.
 pub const NJ: usize = 6;
 /// `b"DKRA"` read as a little-endian u32.

@@ -136,8 +136,10 @@ fn encode_and_decode_allocate_nothing() {
     let mut b = [0u8; STATE_LEN];
     let mut c = [0u8; COMMAND_LEN];
     let (s, k) = (state(), command());
+    let mut link = dkrrt_udp::link::SeqTracker::new();
     let ((), st) = dkrrt_rt::alloc_count::count(|| {
-        for _ in 0..1000 {
+        for i in 0..1000u32 {
+            std::hint::black_box(link.on_packet(i.wrapping_mul(7) % 50));
             s.encode(&mut b);
             k.encode(&mut c);
             std::hint::black_box(StatePacket::decode(&b).unwrap());
