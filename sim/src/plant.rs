@@ -159,8 +159,9 @@ impl Plant {
         self.active = None;
     }
 
-    /// Engages the joint brakes now (the end of a controlled stop whose controller did not
-    /// bring the arm to rest); commands flowing again release them, as after the watchdog.
+    /// Engages the joint brakes now (the watchdog, a non-finite step, the end of a controlled
+    /// stop whose controller did not bring the arm to rest, an emulated arm told to hold);
+    /// commands flowing again release them. Counted once per engagement.
     pub fn engage_brakes(&mut self) {
         if !self.brake {
             self.brake = true;
@@ -247,9 +248,8 @@ impl Plant {
         // Eligible: commands answering states up to tick - 1.
         self.promote_eligible();
         self.ticks_without_command = self.ticks_without_command.saturating_add(1);
-        if !self.brake && self.ticks_without_command > self.cfg.command_timeout_ticks {
-            self.brake = true;
-            self.stats.brake_engagements += 1;
+        if self.ticks_without_command > self.cfg.command_timeout_ticks {
+            self.engage_brakes();
         }
         let (tau, sat) = match (&self.active, self.brake) {
             (Some(c), false) => self.saturate(&c.tau),
@@ -274,10 +274,7 @@ impl Plant {
             let qd_next = qd + (k1a + k2a * 2.0 + k3a * 2.0 + k4a) * (h / 6.0);
             if !(q_next.iter().all(|x| x.is_finite()) && qd_next.iter().all(|x| x.is_finite())) {
                 self.stats.non_finite_steps += 1;
-                if !self.brake {
-                    self.brake = true;
-                    self.stats.brake_engagements += 1;
-                }
+                self.engage_brakes();
                 continue;
             }
             self.q = q_next;

@@ -82,6 +82,21 @@ pub enum Reason {
     TrackingError,
 }
 
+impl Reason {
+    /// A safe-hold reason: the controller braked because something went wrong (not a normal
+    /// switch such as a new trajectory, its completion or a controlled stop).
+    pub fn is_safe_hold(self) -> bool {
+        matches!(
+            self,
+            Reason::StaleState
+                | Reason::InvalidTrajectory
+                | Reason::SpliceRejected
+                | Reason::PlantBrake
+                | Reason::TrackingError
+        )
+    }
+}
+
 /// A mode switch, reported by the tick that made it.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ModeEvent {

@@ -15,7 +15,7 @@ use dkrrt_rt::hist::{LatencyHist, Percentiles};
 use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
 use dkrrt_rt::signals;
 
-use crate::ctrl::{ModeEvent, Reason, Tracker, TrackerConfig};
+use crate::ctrl::{ModeEvent, Tracker, TrackerConfig};
 
 /// Most mode events kept for the report (preallocated; more are counted only).
 pub const MAX_EVENTS: usize = 256;
@@ -64,14 +64,7 @@ pub struct TrackerReport {
 }
 
 fn log_event(e: &ModeEvent) {
-    let safe = matches!(
-        e.reason,
-        Reason::StaleState
-            | Reason::InvalidTrajectory
-            | Reason::SpliceRejected
-            | Reason::PlantBrake
-            | Reason::TrackingError
-    );
+    let safe = e.reason.is_safe_hold();
     eprintln!(
         "tracker: {}{:?} -> {:?} ({:?}) at plant t = {:.3} s",
         if safe { "SAFE HOLD: " } else { "" },
