@@ -44,7 +44,39 @@ pub const GOAL_CLI_NODE: &str = "goal-cli";
 
 /// Processes whose death ends the run (the arm cannot be controlled without them).
 fn critical(name: &str) -> bool {
-    matches!(name, "sim" | "tracker")
+    matches!(name, "sim" | "driver" | "tracker")
+}
+
+/// The process name of the arm emulator (`--driver udp`): the "hardware", not on the bus.
+pub const EMULATOR: &str = "arm-emulator";
+
+/// Which process drives the arm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Driver {
+    /// `dkrrt sim`: the plant simulator on the bus.
+    #[default]
+    Sim,
+    /// `dkrrt udp-driver` talking over UDP (loopback) to `dkrrt arm-emulator`.
+    Udp,
+}
+
+impl Driver {
+    /// The driver's process (and bus node) name.
+    pub fn process(self) -> &'static str {
+        match self {
+            Driver::Sim => "sim",
+            Driver::Udp => "driver",
+        }
+    }
+}
+
+/// Two free UDP ports on loopback, for the driver and the arm emulator (the kernel picks them;
+/// they are released just before the processes bind them).
+fn free_udp_pair() -> Result<(std::net::SocketAddr, std::net::SocketAddr), String> {
+    let a = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| format!("udp port: {e}"))?;
+    let b = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| format!("udp port: {e}"))?;
+    let addr = |s: &std::net::UdpSocket| s.local_addr().map_err(|e| format!("udp port: {e}"));
+    Ok((addr(&a)?, addr(&b)?))
 }
 
 /// Random hex digits from the kernel (run ids, directory names nobody can guess).
@@ -109,6 +141,8 @@ pub struct LaunchOptions {
     pub figures: Option<PathBuf>,
     /// Record every service of the run into this MCAP file (`dkrrt recorder`).
     pub record: Option<PathBuf>,
+    /// Which process drives the arm.
+    pub driver: Driver,
 }
 
 struct Proc {
@@ -132,9 +166,18 @@ fn spawn(
     planner: bool,
     trace: Option<&Path>,
     restart: u32,
+    udp: Option<(std::net::SocketAddr, std::net::SocketAddr)>,
 ) -> std::io::Result<Child> {
     let mut cmd = Command::new(exe);
-    if name == "sim" {
+    if let (EMULATOR, Some((driver, arm))) = (name, udp) {
+        cmd.arg(EMULATOR).arg("--scenario").arg(scenario).arg("--stats").arg(stats);
+        cmd.arg("--listen").arg(arm.to_string()).arg("--driver").arg(driver.to_string()).stdin(Stdio::null());
+        die_with_parent(&mut cmd);
+        return cmd.spawn();
+    }
+    if let ("driver", Some((driver, arm))) = (name, udp) {
+        cmd.arg("udp-driver").arg("--listen").arg(driver.to_string()).arg("--arm").arg(arm.to_string());
+    } else if name == "sim" {
         // Lockstep: plant time starts once the observations have their reader (with debris,
         // where the launcher starts a predictor) and, with goto, once the trajectory is out;
         // with the planner, it waits for each planning cycle instead.
@@ -254,6 +297,9 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     if sc.forecasts() == dkrrt_config::Forecasts::Oracle {
         return Err(ORACLE_IN_PROCESS.into());
     }
+    if opts.driver == Driver::Udp && sc.run.mode != Mode::Realtime {
+        return Err("--driver udp: run.mode must be \"realtime\" (the arm emulator keeps its own clock; lockstep is the simulator's)".into());
+    }
     if let Some(f) = &opts.figures {
         std::fs::create_dir_all(f).map_err(|e| format!("--figures {}: {e}", f.display()))?;
     }
@@ -282,6 +328,10 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         .into_iter()
         .map(|p| std::fs::canonicalize(&p).unwrap_or(p).display().to_string())
         .collect();
+    if opts.driver == Driver::Udp && !resolved.tracker.follow_states {
+        // The arm's clock and the network set when states arrive: the tracker follows them.
+        resolved.tracker.follow_states = true;
+    }
     if let Some(p) = sc.debris_scene_path() {
         resolved.debris.scene = std::fs::canonicalize(&p).unwrap_or(p).display().to_string();
     }
@@ -317,7 +367,13 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     }
     let planner = sc.replans();
     let source: &'static str = if planner { "planner" } else { "goto" };
-    let mut names: Vec<&'static str> = vec!["sim"];
+    let driver = opts.driver.process();
+    let udp = match opts.driver {
+        Driver::Sim => None,
+        Driver::Udp => Some(free_udp_pair()?),
+    };
+    // The arm first (it is powered on before its driver connects).
+    let mut names: Vec<&'static str> = if udp.is_some() { vec![EMULATOR, driver] } else { vec![driver] };
     if sc.has_debris() {
         names.push("predictor");
     }
@@ -327,7 +383,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         let _ = std::fs::remove_file(&stats);
         let trace = (opts.figures.is_some() && matches!(name, "sim" | "tracker" | "planner"))
             .then(|| dir.join(format!("{name}-trace.json")));
-        let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref(), 0)
+        let child = spawn(&exe, name, &run, &sc_path, &stats, planner, trace.as_deref(), 0, udp)
             .map_err(|e| format!("start {name}: {e}"))?;
         println!("dkrrt: started {name} pid {}", child.id());
         procs.push(Proc::new(name, child, stats));
@@ -386,7 +442,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
                         p.respawn_at = Some(now + backoff as u64);
                     }
                 }
-                if st.success() && p.name == "sim" {
+                if st.success() && p.name == driver {
                     // The end of the run: the others follow the end-of-run flag.
                     end_at.get_or_insert(now);
                 }
@@ -408,7 +464,8 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
                 let stats = dir.join(format!("{}-r{}.json", p.name, p.restarts));
                 let trace = (opts.figures.is_some() && p.name == "planner")
                     .then(|| dir.join(format!("{}-r{}-trace.json", p.name, p.restarts)));
-                match spawn(&exe, p.name, &run, &sc_path, &stats, planner, trace.as_deref(), p.restarts) {
+                match spawn(&exe, p.name, &run, &sc_path, &stats, planner, trace.as_deref(), p.restarts, udp)
+                {
                     Ok(child) => {
                         println!("dkrrt: restarted {} pid {} (restart {})", p.name, child.id(), p.restarts);
                         restarts.push(json!({
@@ -456,7 +513,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         }
         if !ready {
             if let Ok((alive, _)) = Bus::nodes(&cfg) {
-                ready = procs.iter().all(|p| alive.iter().any(|(n, _)| n == p.name));
+                ready = procs.iter().all(|p| p.name == EMULATOR || alive.iter().any(|(n, _)| n == p.name));
                 if ready && !opts.quiet {
                     println!("dkrrt: all processes alive on run {run}");
                 }
@@ -468,6 +525,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         } else if stop_at.is_none() && end_at.is_none() {
             for p in procs.iter().filter(|p| p.exit.is_none()) {
                 if p.last_heartbeat_ns.is_some_and(|t| now > t + HEARTBEAT_TIMEOUT_NS) {
+                    // (The arm emulator sends no heartbeats: it is the hardware, off the bus.)
                     let what = format!("process {} stopped sending heartbeats (hung)", p.name);
                     eprintln!("dkrrt: {what}");
                     failure.get_or_insert(what);
@@ -498,7 +556,14 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         // The controlled stop: SIGTERM to everyone at once (the sim brings the arm to rest
         // before it ends), SIGKILL for whatever is left long after.
         if stop_at == Some(now) {
-            for p in procs.iter().filter(|p| p.exit.is_none()) {
+            for p in procs.iter().filter(|p| p.exit.is_none() && p.name != EMULATOR) {
+                signal(&p.child, libc::SIGTERM);
+            }
+        }
+        // The arm is powered off once nothing else runs (its driver brought it to rest and
+        // braked it, or is gone: then the arm's own abort has braked it).
+        if procs.iter().all(|p| p.exit.is_some() || p.name == EMULATOR) {
+            for p in procs.iter().filter(|p| p.exit.is_none() && p.name == EMULATOR) {
                 signal(&p.child, libc::SIGTERM);
             }
         }
@@ -524,13 +589,18 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
 
     let stats_of =
         |name: &str| procs.iter().find(|p| p.name == name).map_or(Value::Null, |p| read_stats(&p.stats));
-    let (sim, tr, goto, pred, plan) = (
-        &stats_of("sim"),
-        &stats_of("tracker"),
-        &stats_of("goto"),
-        &stats_of("predictor"),
-        &stats_of("planner"),
-    );
+    // With the arm emulator, its true plant (limits, brakes, final state) is what the checks
+    // read; the driver's measured figures are kept beside them.
+    let emulator = stats_of(EMULATOR);
+    let mut sim_view = stats_of(driver);
+    if udp.is_some() && !sim_view.is_null() && !emulator.is_null() {
+        sim_view["plant_measured"] = sim_view["plant"].take();
+        for k in ["plant", "final_q", "final_qd"] {
+            sim_view[k] = emulator[k].clone();
+        }
+    }
+    let (sim, tr, goto, pred, plan) =
+        (&sim_view, &stats_of("tracker"), &stats_of("goto"), &stats_of("predictor"), &stats_of("planner"));
     // The verdict: every check of the scenario's `[checks]`.
     let unclean: Vec<String> = procs
         .iter()
@@ -569,6 +639,29 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     let lat = |k: &str, full: bool| {
         let keys: &[&str] = if full { &["p50", "p99", "p999", "max"] } else { &["p50", "p99", "max"] };
         pick(tr.get(k).unwrap_or(&Value::Null), keys)
+    };
+    let link = if udp.is_some() {
+        json!({
+            // On the arm's clock: its state sent → the command answering it received.
+            "round_trip_us": pick(emulator.get("round_trip_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "command_echo_us": pick(sim.pointer("/link/command_echo_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "turnaround_us": pick(sim.pointer("/link/turnaround_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "state_interval_us": pick(sim.pointer("/link/state_interval_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+            "states_lost": sim.pointer("/link/states/lost"),
+            "states_late": sim.pointer("/link/states/late"),
+            "states_duplicated": sim.pointer("/link/states/duplicates"),
+            "invalid_datagrams": sim.pointer("/link/invalid"),
+            "commands_sent": sim.pointer("/link/commands_sent"),
+            "commands_lost": emulator.pointer("/from_driver/lost"),
+            "commands_invalid": emulator.pointer("/arm/commands_invalid"),
+            "commands_late": emulator.pointer("/arm/commands_stale"),
+            "aborts": emulator.pointer("/arm/aborts"),
+            "arm_missed_max": sim.pointer("/link/arm_missed_max"),
+            "impairment": pick(&emulator, &["delay_ms", "jitter_ms", "loss", "duplicate", "reorder"]),
+            "emulator": emulator,
+        })
+    } else {
+        Value::Null
     };
     let report = json!({
         "ok": ok,
@@ -634,6 +727,8 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "goal_reached_s": plan.get("goal_reached_s"),
         }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
+        "driver": driver,
+        "link": link,
         "rogue_nodes": ending.rogue,
         "goal_cli_pids": visitors,
         "restarts": restarts,
@@ -767,6 +862,24 @@ pub fn summary(r: &Value) -> String {
     if let Some(v) = r["final_velocity_rad_s"].as_array() {
         let vmax = v.iter().filter_map(Value::as_f64).fold(0.0f64, |m, x| m.max(x.abs()));
         s += &format!("   final joint speed {vmax:.1e} rad/s");
+    }
+    if r["link"].is_object() {
+        let l = &r["link"];
+        s += &format!(
+            "\n  link (udp, delay {} ms, loss {}): round trip us p50 {} p99 {} max {}   states lost {} late {} dup {}   commands lost {} late {}   invalid {}   aborts {}",
+            l["impairment"]["delay_ms"],
+            l["impairment"]["loss"],
+            f("/link/round_trip_us/p50"),
+            f("/link/round_trip_us/p99"),
+            f("/link/round_trip_us/max"),
+            l["states_lost"],
+            l["states_late"],
+            l["states_duplicated"],
+            l["commands_lost"],
+            l["commands_late"],
+            l["invalid_datagrams"],
+            l["aborts"]
+        );
     }
     for rs in r["restarts"].as_array().into_iter().flatten() {
         s += &format!(

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use dkrrt::launch::{launch, summary, LaunchOptions};
+use dkrrt::launch::{launch, summary, Driver, LaunchOptions};
 use dkrrt_config::{Mode, Scenario};
 
 #[derive(Parser)]
@@ -67,6 +67,38 @@ enum Cmd {
         /// true clearance over time (SVG and PNG).
         #[arg(long)]
         figures: Option<PathBuf>,
+        /// The arm's driver: `sim` (the plant simulator on the bus) or `udp` (hardware in the
+        /// loop: `dkrrt udp-driver` talking to `dkrrt arm-emulator` over UDP on loopback, with
+        /// the scenario's `[udp]` delay, jitter, loss, duplication and reordering).
+        #[arg(long, default_value = "sim", value_parser = ["sim", "udp"])]
+        driver: String,
+    },
+    /// The network arm driver: takes the simulator's place on the bus and talks to an arm over
+    /// dkrrt's UDP protocol (docs/udp-protocol.md).
+    UdpDriver {
+        #[command(flatten)]
+        p: ProcArgs,
+        /// The driver's UDP address (the arm sends its states here).
+        #[arg(long, default_value = "127.0.0.1:50001")]
+        listen: std::net::SocketAddr,
+        /// The arm's UDP address (commands go there).
+        #[arg(long, default_value = "127.0.0.1:50002")]
+        arm: std::net::SocketAddr,
+    },
+    /// The arm emulator ("hardware" for HIL runs): the simulated plant behind the UDP protocol on
+    /// its own 1 kHz clock, with the scenario's `[udp]` network impairments; runs until SIGTERM.
+    ArmEmulator {
+        #[command(flatten)]
+        common: Common,
+        /// The arm's UDP address (commands arrive here).
+        #[arg(long, default_value = "127.0.0.1:50002")]
+        listen: std::net::SocketAddr,
+        /// The driver's UDP address (states go there).
+        #[arg(long, default_value = "127.0.0.1:50001")]
+        driver: std::net::SocketAddr,
+        /// Write the emulator's statistics as JSON here at exit.
+        #[arg(long)]
+        stats: Option<PathBuf>,
     },
     /// The plant simulator process: integrates the arm under commanded torques, publishes state at 1 kHz.
     Sim {
@@ -323,7 +355,7 @@ fn main() -> ExitCode {
     unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
     let cli = Cli::parse();
     let res: Result<bool, String> = (|| match cli.cmd {
-        Cmd::Launch { common, report, run, figures, record } => {
+        Cmd::Launch { common, report, run, figures, record, driver } => {
             let sc = scenario(&common)?;
             // What loading the arm's URDF ignored or assumed, said once.
             for n in sc.load_arm().map_err(|e| e.to_string())?.load_notes() {
@@ -348,6 +380,7 @@ fn main() -> ExitCode {
                 quiet: false,
                 figures,
                 record,
+                driver: if driver == "udp" { Driver::Udp } else { Driver::Sim },
             })?;
             println!("{}", summary(&r));
             println!("report: {}", report.display());
@@ -381,6 +414,15 @@ fn main() -> ExitCode {
                 p.trace.as_deref(),
             )
             .map(|_| true)
+        }
+        Cmd::UdpDriver { p, listen, arm } => {
+            let sc = scenario(&p.common)?;
+            let ep = dkrrt_udp_driver::process::Endpoints { listen, arm };
+            dkrrt_udp_driver::process::run(&p.run, &sc, ep, p.stats.as_deref()).map(|_| true)
+        }
+        Cmd::ArmEmulator { common, listen, driver, stats } => {
+            let sc = scenario(&common)?;
+            dkrrt_emulator::process::run(&sc, listen, driver, stats.as_deref()).map(|_| true)
         }
         Cmd::Tracker(p) => {
             let sc = scenario(&p.common)?;

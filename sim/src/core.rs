@@ -50,10 +50,8 @@ impl SimCore {
         self.plant.step();
         let mut rep = TickReport::default();
         if let Some(d) = self.debris.as_mut() {
-            d.step(self.dt_s);
             let q = self.plant.true_state().0.into();
-            rep.first_contact = d.check(&q) && d.stats.contact_ticks == 1;
-            rep.frames = d.drain_observations(frame, send)?;
+            rep = d.tick(self.dt_s, &q, frame, send)?;
         }
         Ok(rep)
     }

@@ -198,6 +198,22 @@ impl DebrisSide {
         self.stats.observations += self.sensor.poll(t, self.world.debris(), &mut self.obs) as u64;
     }
 
+    /// One world tick: advances the debris by `dt`, checks the arm at `q` against them, and
+    /// hands the sensor's due observation frames to `send` (the simulator's tick, and a
+    /// driver's simulated perception on the measured arm). Allocation-free.
+    pub fn tick<E>(
+        &mut self,
+        dt: f64,
+        q: &[f64; NJ],
+        frame: &mut DebrisObservation,
+        send: impl FnMut(&mut DebrisObservation) -> Result<(), E>,
+    ) -> Result<crate::core::TickReport, E> {
+        self.step(dt);
+        let first_contact = self.check(q) && self.stats.contact_ticks == 1;
+        let frames = self.drain_observations(frame, send)?;
+        Ok(crate::core::TickReport { first_contact, frames })
+    }
+
     /// Moves the available observations into frames of at most [`MAX_DEBRIS`] items, calling
     /// `send` for each filled frame (`stamp_ns` = plant time now). Returns the frames sent.
     pub fn drain_observations<E>(

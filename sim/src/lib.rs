@@ -5,6 +5,7 @@
 //! * [`oracle`]: the recorded true future of the debris (the `oracle-rrt` method's forecasts).
 //! * [`core`]: the simulator's tick (plant + debris + contact check + sensor), shared by the
 //!   process and the in-process lockstep.
+//! * [`stop`]: the controlled stop of a session (every driver's policy).
 //! * [`process`]: the `dkrrt sim` process shell (iceoryx2 + clock).
 
 pub mod core;
@@ -12,3 +13,4 @@ pub mod debris;
 pub mod oracle;
 pub mod plant;
 pub mod process;
+pub mod stop;

@@ -80,6 +80,8 @@ pub struct PlantStats {
     pub saturations: u64,
     /// Times the brake watchdog engaged after commands had been flowing.
     pub brake_engagements: u64,
+    /// Times the controller asked the arm to hold on its brakes (not a fault).
+    pub holds: u64,
     /// Ticks spent with brakes engaged.
     pub brake_ticks: u64,
     /// Substeps in which a joint hit its hard stop.
@@ -154,9 +156,20 @@ impl Plant {
     /// Forgets the commands offered and applied (an arm told to hold: what it was sent
     /// before is not applied after). Until a new command arrives the brakes (engaged by the
     /// caller, or by the watchdog) hold the arm.
-    pub fn drop_commands(&mut self) {
+    fn drop_commands(&mut self) {
         self.pending = None;
         self.active = None;
+    }
+
+    /// The controller asks the arm to hold on its brakes (a driver's end of session): commands
+    /// are forgotten and the brakes engaged, counted in `holds`, not as a brake engagement
+    /// (which is the arm acting against a failing controller).
+    pub fn hold(&mut self) {
+        self.drop_commands();
+        if !self.brake {
+            self.brake = true;
+            self.stats.holds += 1;
+        }
     }
 
     /// Engages the joint brakes now (the watchdog, a non-finite step, the end of a controlled

@@ -76,31 +76,8 @@ pub const TRACE_TICKS: u64 = 10;
 /// it, ns.
 pub const STOP_WAIT_NS: u64 = 50_000_000;
 
-/// A joint slower than this is at rest, rad/s.
-pub const REST_SPEED_RAD_S: f64 = 1e-4;
-/// The run ends once the arm has been at rest this many ticks in a row (after a stop
-/// request, or at the end of its duration).
-pub const REST_TICKS: u64 = 50;
-/// A controlled stop that has not brought the arm to rest after this much plant time engages
-/// the joint brakes (and ignores commands from then on), s.
-pub const STOP_BRAKE_AFTER_S: f64 = 5.0;
-/// A controlled stop ends the run after this much plant time whatever the arm does, s.
-pub const STOP_LIMIT_S: f64 = 15.0;
-
-/// Why and how the run's controlled stop went (`null` in the report: no stop phase).
-#[derive(Debug, Clone, Copy, serde::Serialize)]
-pub struct StopReport {
-    /// `signal` (SIGINT/SIGTERM) or `duration` (the run's duration was over with the arm moving).
-    pub cause: &'static str,
-    /// Plant time the stop began, s.
-    pub t_s: f64,
-    /// Plant time from the stop request to rest (or to the stop limit), s.
-    pub stop_time_s: f64,
-    /// The joint brakes were engaged because the controller had not brought the arm to rest.
-    pub brakes_forced: bool,
-    /// The arm was at rest when the run ended.
-    pub at_rest: bool,
-}
+use crate::stop::StopPolicy;
+pub use crate::stop::{StopReport, REST_SPEED_RAD_S, REST_TICKS, STOP_BRAKE_AFTER_S, STOP_LIMIT_S};
 
 /// Runs the simulator; with `trace`, keeps a [`SimTrace`] (room allocated up front for the
 /// scenario's duration) and writes it there as JSON at exit.
@@ -168,58 +145,30 @@ pub fn run(
     let mut msg = <RobotState as Zeroed>::zeroed();
     let mut wake = LatencyHist::new();
     let mut pacer = Pacer::new(period_ns, 0, 2_000_000);
-    let mut stopped_by_signal = false;
     let first_timeout_ns = 20_000_000_000u64;
     let timeout_ns = 2_000_000_000u64;
 
     let mut k = 0u64;
-    // The controlled stop: asked for by a signal, or the duration is over with the arm moving.
-    // The state carries FLAG_STOPPING (the tracker brakes to rest, sources stop planning), the
-    // gates are dropped, and the run ends once the arm has been at rest for REST_TICKS.
-    let mut stop: Option<StopReport> = None;
-    let mut stop_k = 0u64;
-    let mut rest_ticks = 0u64;
-    let stop_brake_ticks = (STOP_BRAKE_AFTER_S * sc.run.control_hz) as u64;
-    let stop_limit_ticks = (STOP_LIMIT_S * sc.run.control_hz) as u64;
+    // The controlled stop (crate::stop): asked for by a signal, or the duration is over with
+    // the arm moving. The gates are dropped when it begins.
+    let mut policy = StopPolicy::new(sc.run.control_hz, total);
     loop {
         if sc.run.mode == Mode::Realtime {
-            let w = pacer.wait(|| stop.is_none() && signals::stop_requested());
+            let w = pacer.wait(|| policy.report().is_none() && signals::stop_requested());
             wake.record_ns(w.latency_ns());
         }
-        rest_ticks = if core.plant.max_speed() < REST_SPEED_RAD_S { rest_ticks + 1 } else { 0 };
-        let signalled = signals::stop_requested();
-        if stop.is_none() && (signalled || (k >= total && rest_ticks < REST_TICKS)) {
-            stopped_by_signal |= signalled;
-            stop_k = k;
-            stop = Some(StopReport {
-                cause: if signalled { "signal" } else { "duration" },
-                t_s: k as f64 / sc.run.control_hz,
-                stop_time_s: 0.0,
-                brakes_forced: false,
-                at_rest: false,
-            });
+        let step = policy.tick(k, core.plant.max_speed(), signals::stop_requested());
+        if step.began {
             (traj_gate, plan_gate, prog_gate, obs_gate) = (None, None, None, false);
-            if signalled {
+            if policy.stopped_by_signal {
                 eprintln!("sim: stop requested: bringing the arm to rest");
             }
         }
-        if let Some(st) = stop.as_mut() {
-            let since = k - stop_k;
-            if since >= stop_brake_ticks && !st.brakes_forced && rest_ticks < REST_TICKS {
-                st.brakes_forced = true;
-                core.plant.engage_brakes();
-                eprintln!(
-                    "sim: the arm is not at rest {STOP_BRAKE_AFTER_S} s after the stop: brakes engaged"
-                );
-            }
-            st.stop_time_s = since as f64 / sc.run.control_hz;
-            st.at_rest = rest_ticks >= REST_TICKS;
+        if step.engage_brakes {
+            core.plant.engage_brakes();
+            eprintln!("sim: the arm is not at rest {STOP_BRAKE_AFTER_S} s after the stop: brakes engaged");
         }
-        let last = match &stop {
-            None => k >= total,
-            Some(st) => st.at_rest || k - stop_k >= stop_limit_ticks,
-        };
-        let forced = stop.is_some_and(|s| s.brakes_forced);
+        let (last, forced, stopping) = (step.last, step.forced, step.stopping);
         let published = obs_pub.as_ref().map_or(0, |p| p.next_seq());
         if let (false, Some(g)) = (last || published == 0 || k * period_ns < next_plan_ns, prog_gate.as_mut())
         {
@@ -262,7 +211,7 @@ pub fn run(
         msg.header.stamp_ns = k * period_ns;
         msg.header.flags = if m.brake_engaged { FLAG_BRAKE_ENGAGED } else { 0 }
             | if last { FLAG_END_OF_RUN } else { 0 }
-            | if stop.is_some() { FLAG_STOPPING } else { 0 };
+            | if stopping { FLAG_STOPPING } else { 0 };
         msg.q = m.q;
         msg.qd = m.qd;
         msg.tau = m.tau;
@@ -331,14 +280,13 @@ pub fn run(
                     }
                     gated |= k == 0 && obs_gate;
                     gated |= plan_due;
-                    if (plant.has_command_for_current() && !gated)
-                        || (signals::stop_requested() && stop.is_none())
+                    if (plant.has_command_for_current() && !gated) || (signals::stop_requested() && !stopping)
                     {
                         break;
                     }
                     // Stopping: a controller that does not answer within STOP_WAIT_NS is gone
                     // (the plant's watchdog then brakes).
-                    if stop.is_some() && (forced || mono_ns() - t0 > STOP_WAIT_NS) {
+                    if stopping && (forced || mono_ns() - t0 > STOP_WAIT_NS) {
                         break;
                     }
                     if mono_ns() - t0 > limit {
@@ -431,8 +379,8 @@ pub fn run(
         final_q: q.into(),
         final_qd: qd.into(),
         debris: core.debris.as_ref().map(|d| d.stats),
-        stopped_by_signal,
-        stop,
+        stopped_by_signal: policy.stopped_by_signal,
+        stop: policy.report(),
         rt,
     };
     dkrrt_rt::write_stats("sim", stats_path, &report)?;

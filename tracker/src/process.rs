@@ -10,7 +10,7 @@ use dkrrt_config::arm::contract_limits;
 use dkrrt_config::{Mode, Scenario};
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
-use dkrrt_rt::clock::{mono_ns, Pacer};
+use dkrrt_rt::clock::{mono_ns, Pacer, PhaseFollower};
 use dkrrt_rt::hist::{LatencyHist, Percentiles};
 use dkrrt_rt::rtsetup::{self, RtOptions, RtReport};
 use dkrrt_rt::signals;
@@ -56,6 +56,10 @@ pub struct TrackerReport {
     pub foreign_trajectories: u64,
     /// Robot states ignored because they came from a second publisher (not the run's plant).
     pub foreign_states: u64,
+    /// Times the wake phase moved to follow the states' arrival (`tracker.follow_states`).
+    pub phase_moves: u64,
+    /// The wake phase at the end, µs after the monotonic grid.
+    pub phase_us: f64,
     pub events: Vec<ModeEvent>,
     pub events_dropped: u64,
     pub end_of_run_seen: bool,
@@ -142,6 +146,11 @@ pub fn run(
     let period_ns = sc.period_ns();
     let mut pacer = Pacer::new(period_ns, sc.tracker.phase_us * 1000, 2_000_000);
     let wait_ns = sc.tracker.state_wait_us * 1000;
+    // Following the states' arrival phase (`tracker.follow_states`): wake `phase_us` before it.
+    let mut follower = sc.tracker.follow_states.then(|| {
+        PhaseFollower::new(period_ns, sc.tracker.phase_us * 1000, (sc.run.control_hz / 2.0).max(1.0) as u32)
+    });
+    let mut phase_moves = 0u64;
     let mut last_seq: Option<u64> = None;
     // The plant this run started: the first publisher of states. A second one (a rogue `sim`
     // on the run) is ignored and counted; if ours is gone from the service, the next one
@@ -206,6 +215,15 @@ pub fn run(
             }
         }
         let now = mono_ns();
+        if let (true, Some(f)) = (fresh && sc.run.mode == Mode::Realtime, follower.as_mut()) {
+            if let Some(ph) = f.record(state.header.mono_ns) {
+                let d = ph.abs_diff(pacer.phase_ns());
+                if d.min(period_ns - d) > 20_000 {
+                    pacer.set_phase(ph);
+                    phase_moves += 1;
+                }
+            }
+        }
         if fresh {
             last_fresh_ns = now;
             state_lock.get_or_insert(state_sub.origin);
@@ -366,6 +384,8 @@ pub fn run(
         rejected: Rejected { state: state_sub.rejected, trajectory: traj_sub.rejected },
         foreign_trajectories,
         foreign_states: state_sub.foreign,
+        phase_moves,
+        phase_us: pacer.phase_ns() as f64 * 1e-3,
         events,
         events_dropped,
         end_of_run_seen,

@@ -69,6 +69,10 @@ pub struct Scenario {
     /// Restart policies of the processes that may restart mid-run (`dkrrt launch`).
     #[serde(default)]
     pub supervision: SupervisionCfg,
+    /// The UDP link to the arm (`dkrrt launch --driver udp`, `dkrrt udp-driver`,
+    /// `dkrrt arm-emulator`): the emulated network's impairments and the arm's abort limit.
+    #[serde(default)]
+    pub udp: UdpCfg,
     /// A threat episode (generated start, goal and debris aimed at the straight motion)
     /// replacing `sim.initial_q`, `goal.q` and the debris scene; resolved by the consumer
     /// (`dkrrt_episodes::resolve`) into the fields below.
@@ -218,6 +222,43 @@ impl SupervisionCfg {
     }
 }
 
+/// `[udp]`: the link between `dkrrt udp-driver` and the arm (docs/udp-protocol.md). The
+/// impairments are the arm emulator's (`dkrrt arm-emulator`), applied to both directions; a
+/// real arm's network has its own.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct UdpCfg {
+    /// One-way delay added to every datagram, ms.
+    pub delay_ms: f64,
+    /// Uniform random extra one-way delay in [0, jitter_ms], ms.
+    pub jitter_ms: f64,
+    /// Probability that a datagram is lost.
+    pub loss: f64,
+    /// Probability that a datagram is delivered twice.
+    pub duplicate: f64,
+    /// Probability that a datagram is held back one more period (arrives after its successor).
+    pub reorder: f64,
+    /// Seed of the impairments.
+    pub seed: u64,
+    /// The arm aborts to its brakes after this many ticks without a valid command (Franka's
+    /// FCI: 20).
+    pub abort_after: u32,
+}
+
+impl Default for UdpCfg {
+    fn default() -> Self {
+        UdpCfg {
+            delay_ms: 0.0,
+            jitter_ms: 0.0,
+            loss: 0.0,
+            duplicate: 0.0,
+            reorder: 0.0,
+            seed: 1,
+            abort_after: 20,
+        }
+    }
+}
+
 /// `[episode]`: a generated threat episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -289,6 +330,11 @@ pub struct TrackerCfg {
     pub max_track_error_rad: f64,
     pub phase_us: u64,
     pub state_wait_us: u64,
+    /// Realtime: wake `phase_us` before the mean arrival phase of the states (re-measured every
+    /// 0.5 s) instead of `phase_us` after the monotonic grid: for drivers paced by their own
+    /// hardware clock with a network in between (`dkrrt launch --driver udp` sets it).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub follow_states: bool,
     pub predict: bool,
     pub fifo_priority: u32,
     pub mlockall: bool,
@@ -876,6 +922,18 @@ impl Scenario {
         }
         c.positive("supervision.backoff_ms", su.backoff_ms)?;
         c.at_most("supervision.backoff_ms", su.backoff_ms, 60_000.0, "ms")?;
+        let u = &self.udp;
+        for (field, v, hi) in [("udp.delay_ms", u.delay_ms, 1000.0), ("udp.jitter_ms", u.jitter_ms, 1000.0)] {
+            c.non_negative(field, v)?;
+            c.at_most(field, v, hi, "ms")?;
+        }
+        for (field, v) in [("udp.loss", u.loss), ("udp.duplicate", u.duplicate), ("udp.reorder", u.reorder)] {
+            c.non_negative(field, v)?;
+            c.at_most(field, v, 1.0, "(a probability)")?;
+        }
+        if !(1..=1000).contains(&u.abort_after) {
+            return Err(c.fail("udp.abort_after", u.abort_after, "must be within [1, 1000] ticks"));
+        }
         let k = &self.checks;
         c.positive("checks.goal_tolerance_rad", k.goal_tolerance_rad)?;
         c.at_most("checks.goal_tolerance_rad", k.goal_tolerance_rad, 0.5, "rad")?;

@@ -100,6 +100,60 @@ impl Pacer {
     pub fn phase_ns(&self) -> u64 {
         self.phase_ns
     }
+
+    /// Moves the grid to `phase_ns`: the next deadline is the first point of the new grid at
+    /// least half a period after the last one (no tick is doubled or skipped).
+    pub fn set_phase(&mut self, phase_ns: u64) {
+        let phase = phase_ns % self.period_ns;
+        let last = self.next_deadline - self.period_ns;
+        self.next_deadline = align_up(last + self.period_ns / 2, self.period_ns, phase);
+        self.phase_ns = phase;
+    }
+}
+
+/// Follows the phase at which another process's messages arrive (a driver paced by its arm's
+/// own clock, a network in between), so a periodic reader can wake just before them instead of
+/// on a fixed phase that may sit just after them (it would then read every message a period
+/// late). Arrival phases are averaged on the circle (a phase near the period's end and one near
+/// its start are close); allocation-free.
+#[derive(Debug, Clone)]
+pub struct PhaseFollower {
+    period_ns: u64,
+    lead_ns: u64,
+    sum_cos: f64,
+    sum_sin: f64,
+    n: u32,
+    window: u32,
+}
+
+impl PhaseFollower {
+    /// Suggests waking `lead_ns` before the mean arrival phase of each `window` arrivals.
+    pub fn new(period_ns: u64, lead_ns: u64, window: u32) -> PhaseFollower {
+        PhaseFollower { period_ns, lead_ns, sum_cos: 0.0, sum_sin: 0.0, n: 0, window: window.max(1) }
+    }
+
+    /// Records an arrival at CLOCK_MONOTONIC `t_ns`; every `window` arrivals returns the phase to
+    /// wake at (mean arrival phase − lead, modulo the period), `None` in between or when the
+    /// arrivals have no dominant phase (spread over the whole period).
+    pub fn record(&mut self, t_ns: u64) -> Option<u64> {
+        let a = (t_ns % self.period_ns) as f64 / self.period_ns as f64 * std::f64::consts::TAU;
+        self.sum_cos += a.cos();
+        self.sum_sin += a.sin();
+        self.n += 1;
+        if self.n < self.window {
+            return None;
+        }
+        let (c, s, n) = (self.sum_cos, self.sum_sin, f64::from(self.n));
+        (self.sum_cos, self.sum_sin, self.n) = (0.0, 0.0, 0);
+        // Mean resultant length: 1 = all at one phase; near 0 = no phase to follow.
+        if (c * c + s * s).sqrt() / n < 0.5 {
+            return None;
+        }
+        let mean =
+            s.atan2(c).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU * self.period_ns as f64;
+        let p = self.period_ns as f64;
+        Some((mean - self.lead_ns as f64).rem_euclid(p) as u64 % self.period_ns)
+    }
 }
 
 /// Smallest `t >= x` with `t ≡ phase (mod period)`.
@@ -122,6 +176,40 @@ mod tests {
         assert_eq!(align_up(1_001, 1_000, 0), 2_000);
         assert_eq!(align_up(1_001, 1_000, 300), 1_300);
         assert_eq!(align_up(1_400, 1_000, 300), 2_300);
+    }
+
+    #[test]
+    fn the_follower_wakes_before_arrivals_also_across_the_period_boundary() {
+        let period = 1_000_000;
+        for (arrive, want) in [(550_000u64, 450_000u64), (30_000, 930_000), (980_000, 880_000)] {
+            let mut f = PhaseFollower::new(period, 100_000, 100);
+            let mut got = None;
+            for k in 0..100u64 {
+                // ±40 µs of jitter around the arrival phase, wrapping past the period's end.
+                let jitter = (k * 7919 % 81) * 1000;
+                got = f.record(k * period + arrive + period - 40_000 + jitter);
+            }
+            let got = got.expect("a phase after a window") as i64;
+            let err = (got - want as i64).rem_euclid(period as i64);
+            assert!(err.min(period as i64 - err) < 10_000, "arrive {arrive}: woke at {got}, want {want}");
+        }
+        // Arrivals spread over the whole period have no phase to follow.
+        let mut f = PhaseFollower::new(period, 100_000, 100);
+        let got = (0..100u64).map(|k| f.record(k * period + k * 10_000)).last().unwrap();
+        assert_eq!(got, None);
+    }
+
+    #[test]
+    fn moving_the_phase_neither_doubles_nor_skips_a_tick() {
+        let mut p = Pacer::new(1_000_000, 50_000, 0);
+        let a = p.wait(|| false);
+        p.set_phase(450_000);
+        let b = p.wait(|| false);
+        assert_eq!(b.deadline_ns % 1_000_000, 450_000);
+        assert_eq!(b.deadline_ns - a.deadline_ns, 1_400_000);
+        p.set_phase(50_000);
+        let c = p.wait(|| false);
+        assert_eq!(c.deadline_ns - b.deadline_ns, 600_000);
     }
 
     #[test]

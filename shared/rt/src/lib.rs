@@ -1,11 +1,12 @@
 //! dkrrt-rt: real-time utilities shared by every process: absolute-deadline
 //! pacing on CLOCK_MONOTONIC, optional SCHED_FIFO / mlockall / CPU pinning,
 //! SIGINT/SIGTERM handling, preallocated latency histograms, and a counting
-//! allocator for allocation tests.
+//! allocator for allocation tests, and socket waits with sub-ms timeouts.
 
 pub mod alloc_count;
 pub mod clock;
 pub mod hist;
+pub mod poll;
 pub mod rtsetup;
 pub mod signals;
 

@@ -11,7 +11,11 @@
 //!
 //! Plain step functions over preallocated state: [`ArmEmulator::state`],
 //! [`ArmEmulator::receive`], [`ArmEmulator::step`] allocate nothing. The process shell (sockets,
-//! clock, packet loss and delay) is separate.
+//! clock, packet loss and delay) is separate: [`net`] is the emulated network (delay, jitter,
+//! loss, duplication, reordering) and [`process`] the `dkrrt arm-emulator` process.
+
+pub mod net;
+pub mod process;
 
 use dkrrt_model::{ArmModel, JVec, NJ};
 use dkrrt_sim::plant::{Plant, PlantConfig};
@@ -83,6 +87,8 @@ pub struct ArmEmulator {
     last_command_seq: u32,
     missed: u32,
     aborted: bool,
+    /// The last command applied asked to hold (brakes on request: silence is no abort).
+    holding: bool,
     pub stats: EmulatorStats,
 }
 
@@ -100,6 +106,7 @@ impl ArmEmulator {
             last_command_seq: 0,
             missed: 0,
             aborted: false,
+            holding: false,
             stats: EmulatorStats::default(),
         }
     }
@@ -140,8 +147,9 @@ impl ArmEmulator {
     }
 
     /// A datagram from the driver: kept for the next tick if it is a valid command answering a
-    /// state already sent and no older than the command kept or applied.
-    pub fn receive(&mut self, datagram: &[u8]) -> Result<(), Rejected> {
+    /// state already sent and no older than the command kept or applied; returns the `seq` of
+    /// the state it answers.
+    pub fn receive(&mut self, datagram: &[u8]) -> Result<u32, Rejected> {
         let c = CommandPacket::decode(datagram).map_err(|e| {
             self.stats.commands_invalid += 1;
             Rejected::Invalid(e)
@@ -155,7 +163,25 @@ impl ArmEmulator {
             return Err(Rejected::Stale);
         }
         self.next = Some(c);
-        Ok(())
+        Ok(c.state_seq)
+    }
+
+    /// Power off: the brakes engage and the arm coasts to rest on them; steps the plant (as
+    /// fast as it computes, nobody listens any more) until every joint has been slower than
+    /// `rest_speed` for 50 ticks or `limit_ticks` have passed. Returns the ticks it took.
+    pub fn power_off(&mut self, rest_speed: f64, limit_ticks: u64) -> u64 {
+        if self.plant.max_speed() >= rest_speed {
+            self.plant.engage_brakes();
+        } else {
+            self.plant.hold();
+        }
+        let (mut n, mut rest) = (0u64, 0u64);
+        while rest < 50 && n < limit_ticks {
+            self.plant.step();
+            n += 1;
+            rest = if self.plant.max_speed() < rest_speed { rest + 1 } else { 0 };
+        }
+        n
     }
 
     /// The servo's torque for a position/velocity setpoint, from the arm's own measurement.
@@ -180,11 +206,9 @@ impl ArmEmulator {
                         let tau = self.servo(&c);
                         self.plant.offer_command(u64::from(c.state_seq), &tau);
                     }
-                    Mode::Hold => {
-                        self.plant.drop_commands();
-                        self.plant.engage_brakes();
-                    }
+                    Mode::Hold => self.plant.hold(),
                 }
+                self.holding = c.mode == Mode::Hold;
                 self.applied_state_seq = Some(c.state_seq);
                 self.last_command_seq = c.seq;
                 self.stats.commands_applied += 1;
@@ -194,7 +218,10 @@ impl ArmEmulator {
             None => self.missed = self.missed.saturating_add(1),
         }
         self.plant.step();
-        if !self.aborted && self.missed > self.cfg.abort_after && self.plant.brake_engaged() {
+        // An abort is commands that stopped flowing: not the silence before the first command
+        // (the arm is braked at power-up), nor after a hold was asked for.
+        let flowed = self.stats.commands_applied > 0 && !self.holding;
+        if flowed && !self.aborted && self.missed > self.cfg.abort_after && self.plant.brake_engaged() {
             self.aborted = true;
             self.stats.aborts += 1;
         }
