@@ -8,6 +8,7 @@
 
 pub mod faults;
 pub mod figures;
+pub mod latency;
 pub mod launch;
 pub mod lockstep;
 pub mod mcap_io;

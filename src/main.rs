@@ -73,6 +73,35 @@ enum Cmd {
         #[arg(long, default_value = "sim", value_parser = ["sim", "udp"])]
         driver: String,
     },
+    /// The latency and jitter suite: a cyclictest-style baseline thread, the tracker's wake-up
+    /// and state->command latency in the real process set, and an iceoryx2 ping-pong per message
+    /// type through dkrrt's bus and through raw iceoryx2, side by side; percentiles, JSON and
+    /// percentile plots into --out.
+    Latency {
+        #[command(flatten)]
+        common: Common,
+        /// Load beside the measurement: none, cpu (a busy thread per core) or io (4 MiB writes
+        /// with fsync).
+        #[arg(long, default_value = "none", value_parser = ["none", "cpu", "io"])]
+        load: String,
+        /// Directory for latency.json and the figures.
+        #[arg(long, default_value = "dkrrt-latency")]
+        out: PathBuf,
+    },
+    /// The echo side of `dkrrt latency`'s ping-pong (started by it).
+    #[command(hide = true)]
+    LatencyEcho {
+        #[command(flatten)]
+        common: Common,
+        #[arg(long)]
+        ping_run: String,
+        #[arg(long)]
+        pong_run: String,
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        #[arg(long)]
+        stats: PathBuf,
+    },
     /// The network arm driver: takes the simulator's place on the bus and talks to an arm over
     /// dkrrt's UDP protocol (docs/udp-protocol.md).
     UdpDriver {
@@ -419,6 +448,16 @@ fn main() -> ExitCode {
             let sc = scenario(&p.common)?;
             let ep = dkrrt_udp_driver::process::Endpoints { listen, arm };
             dkrrt_udp_driver::process::run(&p.run, &sc, ep, p.stats.as_deref()).map(|_| true)
+        }
+        Cmd::Latency { common, load, out } => {
+            let sc = scenario(&common)?;
+            let load = dkrrt::latency::Load::parse(&load)?;
+            // The suite's verdict is in its printout and JSON; it ran if it got this far.
+            dkrrt::latency::run(&sc, common.duration.unwrap_or(10.0), load, &out).map(|_| true)
+        }
+        Cmd::LatencyEcho { common, ping_run, pong_run, seconds, stats } => {
+            let sc = scenario(&common)?;
+            dkrrt::latency::echo(&sc, &ping_run, &pong_run, seconds, &stats).map(|_| true)
         }
         Cmd::ArmEmulator { common, listen, driver, stats } => {
             let sc = scenario(&common)?;

@@ -153,3 +153,57 @@ fn a_killed_driver_leaves_the_arm_to_its_own_abort_and_brakes() {
     assert!(vmax < 1e-3, "the arm is at rest: {vmax} rad/s\n{emu:#}");
     assert_eq!(emu["plant"]["limit_hits"], 0);
 }
+
+#[test]
+fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = std::env::temp_dir().join(format!("dkrrt-latency-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = scenario(&dir, "");
+    let out = dir.join("out");
+    let o = Command::new(exe())
+        .arg("latency")
+        .arg("--scenario")
+        .arg(&sc)
+        .args(["--duration", "3", "--load", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = format!("{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{text}");
+    let r: Value = serde_json::from_str(&std::fs::read_to_string(out.join("latency.json")).unwrap()).unwrap();
+    assert_eq!(r["load"], "cpu");
+    // Every series has samples from the same 3 s (1 kHz), in order p50 <= p99 <= p99.9 <= max.
+    let check = |p: &Value, min: f64, what: &str| {
+        assert!(num(p, "/count") >= min, "{what}: {p}");
+        let (a, b, c, d) = (num(p, "/p50"), num(p, "/p99"), num(p, "/p999"), num(p, "/max"));
+        assert!(a > 0.0 && a <= b && b <= c && c <= d, "{what}: {p}");
+    };
+    check(&r["baseline_wake_us"], 1500.0, "baseline");
+    check(&r["tracker_wake_us"], 1500.0, "tracker");
+    check(&r["state_to_command_us"], 1500.0, "state->command");
+    let ipc = r["ipc"].as_array().unwrap();
+    let types: Vec<&str> = ipc.iter().map(|x| x["type"].as_str().unwrap()).collect();
+    assert_eq!(types, ["RobotState", "TorqueCommand", "Trajectory", "DebrisForecast"]);
+    for x in ipc {
+        for path in ["bus", "raw"] {
+            // Under load some pings time out (counted); most are answered.
+            check(&x[path]["one_way_us"], 300.0, &format!("{} {path}", x["type"]));
+            check(&x[path]["round_trip_us"], 300.0, &format!("{} {path} round trip", x["type"]));
+            // A round trip is two one-way trips: its median is not below the one-way median.
+            assert!(num(&x[path], "/round_trip_us/p50") >= num(&x[path], "/one_way_us/p50") * 0.9, "{x:#}");
+        }
+        assert!(num(x, "/bytes") >= 96.0);
+    }
+    // The granted real-time settings are stated, and the targets judged (met or not).
+    assert!(r["rt"]["baseline"]["fifo"].is_boolean() && r["rt"]["tracker"]["fifo"].is_boolean());
+    let targets = r["targets"].as_array().unwrap();
+    assert_eq!(targets.len(), 9);
+    assert!(targets.iter().all(|t| t["met"].is_boolean() && t["value"].is_number()));
+    for f in ["latency-wake.svg", "latency-wake.png", "latency-ipc.svg", "latency-ipc.png"] {
+        assert!(std::fs::metadata(out.join(f)).unwrap().len() > 5_000, "{f}");
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.lines().last().unwrap().starts_with("latency: "), "{stdout}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -39,6 +39,8 @@ pub struct TrackerReport {
     pub ticks: u64,
     pub deadline_misses: u64,
     pub wake_latency_us: Percentiles,
+    /// The wake-up latency's percentile curve, `(nines, µs)` (`dkrrt latency` plots it).
+    pub wake_latency_curve_us: Vec<(f64, f64)>,
     pub tick_compute_us: Percentiles,
     pub state_to_command_us: Percentiles,
     pub tracking_error_rad: ErrorSummary,
@@ -373,6 +375,7 @@ pub fn run(
         ticks: ctrl.stats.ticks,
         deadline_misses: if sc.run.mode == Mode::Realtime { pacer.misses } else { 0 },
         wake_latency_us: wake.percentiles_us(),
+        wake_latency_curve_us: wake.curve_us(),
         tick_compute_us: compute.percentiles_us(),
         state_to_command_us: s2c.percentiles_us(),
         tracking_error_rad: ErrorSummary { rms: ctrl.stats.track.rms(), max: ctrl.stats.track.max_abs },

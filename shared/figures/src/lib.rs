@@ -431,3 +431,102 @@ fn paths_on<DB: DrawingBackend>(
     }
     Ok(())
 }
+
+/// A percentile curve: `(nines, value)` points, `nines = -log10(1 - q)` (as
+/// `dkrrt_rt::hist::LatencyHist::curve_us` gives them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Curve {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+    /// Palette index.
+    pub color: usize,
+    pub dashed: bool,
+}
+
+/// A panel of percentile curves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurvePanel {
+    pub title: String,
+    pub y_label: String,
+    pub curves: Vec<Curve>,
+}
+
+/// The x-axis label of `nines`: the percentile it stands for ("90%", "99.9%").
+fn percent_label(nines: f64) -> String {
+    let p = 100.0 * (1.0 - 10f64.powf(-nines));
+    let decimals = (nines.round() as i64 - 2).clamp(0, 6) as usize;
+    format!("{p:.decimals$}%")
+}
+
+/// HdrHistogram-style latency plots: panels side by side, each with its curves over the
+/// percentile (x: 0, 90, 99, 99.9 … %, spaced by nines) on a logarithmic value axis.
+pub fn percentile_curves(stem: &Path, title: &str, panels: &[CurvePanel]) -> Result<[PathBuf; 2], String> {
+    let cols = panels.len().clamp(1, 2);
+    let rows = panels.len().div_ceil(2).max(1);
+    let size = (560 * cols as u32, 60 + 380 * rows as u32);
+    both!(stem, size, |root| curves_on(&root, title, panels, rows, cols))
+}
+
+fn curves_on<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    panels: &[CurvePanel],
+    rows: usize,
+    cols: usize,
+) -> Result<(), String> {
+    let root = root.titled(title, (FONT, 22).into_font().style(FontStyle::Bold)).map_err(err)?;
+    let areas = root.split_evenly((rows, cols));
+    for (panel, area) in panels.iter().zip(areas.iter()) {
+        let pts =
+            || panel.curves.iter().flat_map(|c| c.points.iter()).filter(|p| p.1 > 0.0 && p.1.is_finite());
+        let x1 = pts().map(|p| p.0).fold(1.0f64, f64::max).ceil();
+        let y0 = pts().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        let y1 = pts().map(|p| p.1).fold(0.0f64, f64::max);
+        let (y0, y1) = if y0 < y1 { (y0 / 1.5, y1 * 1.5) } else { (0.1, 10.0) };
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, (FONT, 16))
+            .margin(10)
+            .x_label_area_size(32)
+            .y_label_area_size(64)
+            .build_cartesian_2d(0.0..x1, (y0..y1).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("percentile")
+            .y_desc(&panel.y_label)
+            .x_labels(x1 as usize + 1)
+            .x_label_formatter(&|x| percent_label(*x))
+            .label_style((FONT, 12))
+            .draw()
+            .map_err(err)?;
+        for c in &panel.curves {
+            let color = PALETTE[c.color % PALETTE.len()];
+            let style = color.stroke_width(2);
+            let points: Vec<(f64, f64)> =
+                c.points.iter().copied().filter(|p| p.1 > 0.0 && p.1.is_finite()).collect();
+            if c.dashed {
+                for (i, seg) in dashed(&points, x1).into_iter().enumerate() {
+                    let a = chart.draw_series(LineSeries::new(seg, style)).map_err(err)?;
+                    if i == 0 {
+                        a.label(c.name.clone()).legend(line_key(style));
+                    }
+                }
+            } else {
+                chart
+                    .draw_series(LineSeries::new(points, style))
+                    .map_err(err)?
+                    .label(c.name.clone())
+                    .legend(line_key(style));
+            }
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font((FONT, 12))
+            .draw()
+            .map_err(err)?;
+    }
+    Ok(())
+}

@@ -1,6 +1,9 @@
 //! Every figure is written as a valid SVG and PNG of the stated size, with its text.
 
-use dkrrt_figures::{grouped_bars, path_projections, time_panels, Bar, BarPanel, HLine, Series, TimePanel};
+use dkrrt_figures::{
+    grouped_bars, path_projections, percentile_curves, time_panels, Bar, BarPanel, Curve, CurvePanel, HLine,
+    Series, TimePanel,
+};
 
 fn png_size(b: &[u8]) -> (u32, u32) {
     assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "PNG signature");
@@ -54,6 +57,20 @@ fn bars_series_and_paths_render_to_svg_and_png() {
     let debris = vec![(0..100).map(|i| [-2.0 + 0.04 * i as f64, 0.3, 0.5]).collect::<Vec<_>>()];
     let p = path_projections(&d.join("paths"), "Paths test", &helix, &shifted, &debris).unwrap();
     check(&p, (1500, 560), "x–y projection");
+
+    let curve =
+        |scale: f64| (0..40).map(|i| (i as f64 * 0.1, scale * (1.0 + (i as f64 * 0.1).exp()))).collect();
+    let panel = CurvePanel {
+        title: "wake-up latency".into(),
+        y_label: "us".into(),
+        curves: vec![
+            Curve { name: "baseline".into(), points: curve(1.0), color: 7, dashed: true },
+            Curve { name: "tracker".into(), points: curve(1.2), color: 0, dashed: false },
+        ],
+    };
+    let p =
+        percentile_curves(&d.join("curves"), "Curves test", &[panel.clone(), panel.clone(), panel]).unwrap();
+    check(&p, (1120, 820), "99.9%");
     let _ = std::fs::remove_dir_all(d);
 }
 
