@@ -207,3 +207,24 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
     assert!(stdout.lines().last().unwrap().starts_with("latency: "), "{stdout}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn an_arm_that_takes_setpoints_is_driven_in_servo_mode_to_the_goal() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = std::env::temp_dir().join(format!("dkrrt-hil-servo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = scenario(&dir, "[udp]\ndelay_ms = 0.2\nloss = 0.005\n");
+    let text = std::fs::read_to_string(&sc)
+        .unwrap()
+        .replace("predict = true ", "command = \"servo\"\npredict = true ");
+    std::fs::write(&sc, text).unwrap();
+    let (ok, r, text) = launch(&sc, &["--driver", "udp"], "servo");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(ok, "{text}");
+    // The emulated arm's own servo tracked the setpoints: the goal reached (the verdict),
+    // within a few mrad all along (no acceleration feed-forward, two ticks of delay).
+    assert!(num(&r, "/tracking_error_rad/max") < 5e-3, "{:#}", r["tracking_error_rad"]);
+    assert!(num(&r, "/final_error_rad") < 0.01);
+    assert_eq!(num(&r, "/link/aborts"), 0.0);
+    assert!(num(&r, "/link/emulator/arm/commands_applied") > 3000.0);
+}

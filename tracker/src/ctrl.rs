@@ -126,6 +126,10 @@ pub type StateIn<'a> = (u64, u64, &'a [f64; NJ], &'a [f64; NJ], bool);
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TickOutput {
     pub tau: [f64; NJ],
+    /// The reference position and velocity for the tick the command acts in (servo-mode arms
+    /// track these with their own servo); the measured position at rest when idle.
+    pub q_set: [f64; NJ],
+    pub qd_set: [f64; NJ],
     pub mode: ControllerMode,
     /// Seq of the state this answers (the newest received).
     pub state_seq: u64,
@@ -500,7 +504,15 @@ impl Tracker {
             _ => self.ticks_since_state = self.ticks_since_state.saturating_add(1),
         }
         let Some((seq, _, q, qd)) = self.last_state else {
-            return TickOutput { tau: [0.0; NJ], mode: self.mode, state_seq: 0, plant_ns: 0, event };
+            return TickOutput {
+                tau: [0.0; NJ],
+                q_set: [0.0; NJ],
+                qd_set: [0.0; NJ],
+                mode: self.mode,
+                state_seq: 0,
+                plant_ns: 0,
+                event,
+            };
         };
         let ns = self.plant_ns();
         let stale = self.ticks_since_state >= self.cfg.stale_ticks;
@@ -608,6 +620,13 @@ impl Tracker {
             out[i] = tau[i].clamp(-lim[i], lim[i]);
         }
         self.prev_tau = JVec::from(out);
-        TickOutput { tau: out, mode: self.mode, state_seq: seq, plant_ns: ns, event }
+        let (q_set, qd_set) = match self.mode {
+            ControllerMode::Idle => (q.into(), [0.0; NJ]),
+            _ => {
+                let (p, v, _) = self.reference(ns + dt_ns);
+                (p, v)
+            }
+        };
+        TickOutput { tau: out, q_set, qd_set, mode: self.mode, state_seq: seq, plant_ns: ns, event }
     }
 }

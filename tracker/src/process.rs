@@ -325,6 +325,8 @@ pub fn run(
         if last_seq.is_some() {
             cmd.header.stamp_ns = out.plant_ns;
             cmd.tau = out.tau;
+            cmd.q_set = out.q_set;
+            cmd.qd_set = out.qd_set;
             cmd.state_seq = out.state_seq;
             cmd.mode = out.mode as u32;
             cmd.traj_id = ctrl.active_traj_id() as u32;

@@ -478,3 +478,23 @@ fn brakes_engaged_at_power_up_are_not_a_fault() {
     assert_eq!(l.ctrl.mode(), ControllerMode::Track);
     assert_eq!(l.ctrl.stats.reanchors, 0);
 }
+
+#[test]
+fn every_command_carries_the_setpoints_of_the_tick_it_acts_in() {
+    // Idle: hold where the arm is.
+    let mut l = setup(true);
+    let out = l.tick(true);
+    let q0 = l.plant.true_state().0;
+    assert_eq!(out.qd_set, [0.0; NJ]);
+    assert!(out.q_set.iter().zip(q0.iter()).all(|(a, b)| (a - b).abs() < 1e-9), "{:?}", out.q_set);
+    // Tracking: the trajectory's position and velocity one tick after the state's stamp.
+    let mut l = mid_motion();
+    let m = l.plant.measured();
+    let out = l.tick(true);
+    let s = l.traj.sample(l.traj.time_of((m.tick + 1) * 1_000_000));
+    for j in 0..NJ {
+        assert!((out.q_set[j] - s.p[j]).abs() < 1e-9, "joint {j}: {} vs {}", out.q_set[j], s.p[j]);
+        assert!((out.qd_set[j] - s.v[j]).abs() < 1e-9, "joint {j}");
+    }
+    assert!(out.qd_set.iter().any(|v| v.abs() > 0.01), "moving: {:?}", out.qd_set);
+}

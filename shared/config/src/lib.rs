@@ -222,6 +222,17 @@ impl SupervisionCfg {
     }
 }
 
+/// The tracker's command kinds (`tracker.command`).
+pub const COMMAND_KINDS: [&str; 2] = ["torque", "servo"];
+
+fn default_command() -> String {
+    "torque".into()
+}
+
+fn is_torque(s: &String) -> bool {
+    s == "torque"
+}
+
 /// `[udp]`: the link between `dkrrt udp-driver` and the arm (docs/udp-protocol.md). The
 /// impairments are the arm emulator's (`dkrrt arm-emulator`), applied to both directions; a
 /// real arm's network has its own.
@@ -335,6 +346,12 @@ pub struct TrackerCfg {
     /// hardware clock with a network in between (`dkrrt launch --driver udp` sets it).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub follow_states: bool,
+    /// What the arm takes: `"torque"` (joint torques, Franka FCI style; the default) or
+    /// `"servo"` (joint position and velocity setpoints for the arm's own servo, UR `servoj`
+    /// style). Every command carries both; a driver sends the arm what it takes (the simulator
+    /// is torque-driven and always applies the torques).
+    #[serde(default = "default_command", skip_serializing_if = "is_torque")]
+    pub command: String,
     pub predict: bool,
     pub fifo_priority: u32,
     pub mlockall: bool,
@@ -922,6 +939,13 @@ impl Scenario {
         }
         c.positive("supervision.backoff_ms", su.backoff_ms)?;
         c.at_most("supervision.backoff_ms", su.backoff_ms, 60_000.0, "ms")?;
+        if !COMMAND_KINDS.contains(&self.tracker.command.as_str()) {
+            return Err(c.fail(
+                "tracker.command",
+                format!("{:?}", self.tracker.command),
+                "must be \"torque\" or \"servo\"",
+            ));
+        }
         let u = &self.udp;
         for (field, v, hi) in [("udp.delay_ms", u.delay_ms, 1000.0), ("udp.jitter_ms", u.jitter_ms, 1000.0)] {
             c.non_negative(field, v)?;

@@ -136,11 +136,17 @@ impl ControllerMode {
 /// Joint torque command, published by the tracker once per received state (1 kHz).
 #[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("dkrrt::TorqueCommand/1")]
+#[type_name("dkrrt::TorqueCommand/2")]
 pub struct TorqueCommand {
     pub header: Header,
     /// Commanded joint torques, N·m.
     pub tau: [f64; NJ],
+    /// The reference joint positions (rad) and velocities (rad/s) for the tick this command
+    /// acts in (its state's tick + 1): the setpoints of an arm that takes position/velocity
+    /// commands instead of torques (`tracker.command = "servo"`); the measured position and
+    /// zero velocity while the tracker has no reference (idle).
+    pub q_set: [f64; NJ],
+    pub qd_set: [f64; NJ],
     /// `header.seq` of the [`RobotState`] this command answers.
     pub state_seq: u64,
     /// A [`ControllerMode`] value.
@@ -520,7 +526,7 @@ const _: () = {
     use core::mem::{align_of, size_of};
     assert!(size_of::<Header>() == 32 && align_of::<Header>() == 8);
     assert!(size_of::<RobotState>() == 32 + 3 * 8 * NJ);
-    assert!(size_of::<TorqueCommand>() == 32 + 8 * NJ + 16);
+    assert!(size_of::<TorqueCommand>() == 32 + 3 * 8 * NJ + 16);
     assert!(size_of::<JerkSegment>() == 40);
     assert!(size_of::<Trajectory>() == 32 + 24 + 4 * NJ + 40 * MAX_SEGMENTS * NJ);
     assert!(size_of::<Goal>() == 32 + 8 + 8 + 8 * NJ + 24 + 32);

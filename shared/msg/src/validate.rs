@@ -129,6 +129,9 @@ impl Validate for TorqueCommand {
         // Torques beyond the limit are a controller bug, not a saturation case:
         // the plant saturates, but a command far outside is rejected.
         sym("tau", &self.tau, &lim.tau_max, 1.0 + 1e-9)?;
+        let (lo, hi) = lim.q_bounds();
+        range("q_set", &self.q_set, &lo, &hi)?;
+        sym("qd_set", &self.qd_set, &lim.v_max, lim.v_factor)?;
         if ControllerMode::from_u32(self.mode).is_none() {
             return Err(ValidationError::BadEnum { field: "mode", value: self.mode });
         }

@@ -59,7 +59,7 @@ proptest! {
     fn torque_commands_that_pass_are_finite_with_a_known_mode(b in sparse(std::mem::size_of::<TorqueCommand>())) {
         let m = from_bytes::<TorqueCommand>(&b);
         if m.validate(&lim()).is_ok() {
-            prop_assert!(m.tau.iter().all(|t| t.is_finite()));
+            prop_assert!(m.tau.iter().chain(&m.q_set).chain(&m.qd_set).all(|t| t.is_finite()));
             prop_assert!(ControllerMode::from_u32(m.mode).is_some());
         }
     }

@@ -35,6 +35,15 @@ fn torque_command_checks_mode_and_torque() {
     c.mode = ControllerMode::Track as u32;
     c.tau[0] = f64::NAN;
     assert_eq!(c.validate(&lim()), Err(ValidationError::NonFinite { field: "tau", index: 0 }));
+    c.tau[0] = 0.0;
+    // The setpoints for servo-mode arms: finite, within the joint and velocity limits.
+    c.qd_set[4] = f64::INFINITY;
+    assert_eq!(c.validate(&lim()), Err(ValidationError::NonFinite { field: "qd_set", index: 4 }));
+    c.qd_set[4] = 0.0;
+    c.q_set[1] = 3.06;
+    assert!(matches!(c.validate(&lim()), Err(ValidationError::OutOfRange { field: "q_set", index: 1, .. })));
+    c.q_set[1] = 0.5;
+    assert!(c.validate(&lim()).is_ok());
 }
 
 #[test]

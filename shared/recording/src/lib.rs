@@ -94,12 +94,14 @@ impl Recordable for RobotState {
 
 impl Recordable for TorqueCommand {
     fn to_json(&self) -> Value {
-        json!({"header": hdr(&self.header), "tau": self.tau, "state_seq": self.state_seq, "mode": self.mode, "traj_id": self.traj_id})
+        json!({"header": hdr(&self.header), "tau": self.tau, "q_set": self.q_set, "qd_set": self.qd_set, "state_seq": self.state_seq, "mode": self.mode, "traj_id": self.traj_id})
     }
     fn from_json(v: &Value) -> Option<Self> {
         Some(TorqueCommand {
             header: header_from(v)?,
             tau: arr(v, "tau")?,
+            q_set: arr(v, "q_set")?,
+            qd_set: arr(v, "qd_set")?,
             state_seq: u(v, "state_seq")?,
             mode: u(v, "mode")? as u32,
             traj_id: u(v, "traj_id")? as u32,

@@ -138,6 +138,8 @@ pub fn run(
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
     let dt_s = sc.period_ns() as f64 * 1e-9;
     let cmd_wait_ns = (sc.period_ns() as f64 * COMMAND_WAIT_FRACTION) as u64;
+    // What the arm takes (`tracker.command`): torques, or setpoints for its own servo.
+    let arm_mode = if sc.tracker.command == "servo" { ArmMode::Servo } else { ArmMode::Torque };
 
     let mut core = DriverCore::new();
     let mut policy = StopPolicy::new(sc.run.control_hz, sc.ticks());
@@ -293,15 +295,9 @@ pub fn run(
                         if forced || ended {
                             return;
                         }
-                        if let Some(n) = core.command(
-                            t,
-                            c.state_seq,
-                            ArmMode::Torque,
-                            &c.tau,
-                            &[0.0; NJ],
-                            &[0.0; NJ],
-                            &mut cbuf,
-                        ) {
+                        if let Some(n) =
+                            core.command(t, c.state_seq, arm_mode, &c.tau, &c.q_set, &c.qd_set, &mut cbuf)
+                        {
                             if sock.send_to(&cbuf[..n], ep.arm).is_err() {
                                 send_errors += 1;
                             }
