@@ -29,6 +29,11 @@ fn scenario(dir: &std::path::Path, extra: &str) -> std::path::PathBuf {
         .replace("stale_ticks = 3 ", "stale_ticks = 20 ")
         .replace("method = \"dk-rrt\"", "method = \"straight\"")
         .replace("duration_s = 8.0", "duration_s = 6.0");
+    // An `extra` [udp] table replaces the default's.
+    let text = match (extra.contains("[udp]"), text.find("\n[udp]")) {
+        (true, Some(i)) => text[..i + 1].to_string(),
+        _ => text,
+    };
     let p = dir.join("hil.toml");
     std::fs::write(&p, format!("{text}\n{extra}")).unwrap();
     p
@@ -219,9 +224,7 @@ fn an_arm_that_takes_setpoints_is_driven_in_servo_mode_to_the_goal() {
     let dir = std::env::temp_dir().join(format!("dkrrt-hil-servo-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let sc = scenario(&dir, "[udp]\ndelay_ms = 0.2\nloss = 0.005\n");
-    let text = std::fs::read_to_string(&sc)
-        .unwrap()
-        .replace("predict = true ", "command = \"servo\"\npredict = true ");
+    let text = std::fs::read_to_string(&sc).unwrap().replace("command = \"torque\"", "command = \"servo\"");
     std::fs::write(&sc, text).unwrap();
     let (ok, r, text) = launch(&sc, &["--driver", "udp"], "servo");
     let _ = std::fs::remove_dir_all(&dir);

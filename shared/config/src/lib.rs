@@ -1052,6 +1052,32 @@ mod tests {
     }
 
     #[test]
+    fn the_udp_link_and_the_command_kind_are_checked_naming_the_field() {
+        let ok = Scenario::from_toml_str(DEFAULT_SCENARIO, "d.toml").unwrap();
+        assert_eq!((ok.udp.abort_after, ok.tracker.command.as_str()), (20, "torque"));
+        for (from, to, field) in [
+            ("loss = 0.0 ", "loss = 1.5 ", "udp.loss"),
+            ("delay_ms = 0.0 ", "delay_ms = -1.0 ", "udp.delay_ms"),
+            ("jitter_ms = 0.0 ", "jitter_ms = nan ", "udp.jitter_ms"),
+            ("abort_after = 20 ", "abort_after = 0 ", "udp.abort_after"),
+            ("command = \"torque\"", "command = \"velocity\"", "tracker.command"),
+        ] {
+            let text = DEFAULT_SCENARIO.replace(from, to);
+            assert_ne!(text, DEFAULT_SCENARIO, "{from}");
+            let s = Scenario::from_toml_str(&text, "bad.toml").unwrap();
+            let e = s.validate(&arm()).unwrap_err().to_string();
+            assert!(e.contains(field), "{field}: {e}");
+        }
+        ok.validate(&arm()).unwrap();
+        // A scenario without [udp] (every older one) gets the defaults.
+        let i = DEFAULT_SCENARIO.find("\n[udp]").unwrap();
+        let s = Scenario::from_toml_str(&DEFAULT_SCENARIO[..i], "old.toml").unwrap();
+        assert_eq!(s.udp, UdpCfg::default());
+        let servo = DEFAULT_SCENARIO.replace("command = \"torque\"", "command = \"servo\"");
+        assert_eq!(Scenario::from_toml_str(&servo, "s.toml").unwrap().tracker.command, "servo");
+    }
+
+    #[test]
     fn relative_urdf_paths_resolve_against_the_file() {
         let mut s = Scenario::default_scenario();
         assert_eq!(s.urdf_path(), None);

@@ -53,9 +53,17 @@ fn legend<'a, DB: DrawingBackend + 'a>(
         Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
     >,
 ) -> Result<(), String> {
+    boxed_legend(chart, SeriesLabelPosition::UpperRight)
+}
+
+/// The series legend, boxed, at `pos`.
+fn boxed_legend<'a, DB: DrawingBackend + 'a, X: Ranged, Y: Ranged>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    pos: SeriesLabelPosition,
+) -> Result<(), String> {
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(pos)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font((FONT, 12))
@@ -519,14 +527,7 @@ fn curves_on<DB: DrawingBackend>(
                     .legend(line_key(style));
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 12))
-            .draw()
-            .map_err(err)?;
+        boxed_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     }
     Ok(())
 }
