@@ -322,6 +322,51 @@ pub struct EchoReport {
     pub missed: u64,
 }
 
+/// The echo's bookkeeping of one round: which leg to poll, and when the round is over.
+#[derive(Debug, Clone, Copy)]
+struct EchoRound {
+    /// When the echo started polling this round, ns.
+    since: u64,
+    legs: usize,
+    /// This round's pings answered.
+    n: usize,
+    /// The leg whose ping should come next.
+    expect: usize,
+    turn: u64,
+}
+
+impl EchoRound {
+    fn new(since: u64, first: usize, legs: usize) -> EchoRound {
+        EchoRound { since, legs, n: 0, expect: first % legs, turn: 0 }
+    }
+
+    /// Every leg of the round answered.
+    fn done(&self) -> bool {
+        self.n >= self.legs
+    }
+
+    /// The legs to poll this turn: the expected one, and every 8th turn all of them (a lost
+    /// ping or pong puts the two sides out of step).
+    fn to_poll(&mut self) -> impl Iterator<Item = usize> {
+        self.turn += 1;
+        let (sweep, expect) = (self.turn.is_multiple_of(8), self.expect);
+        (0..self.legs).filter(move |k| sweep || *k == expect)
+    }
+
+    /// A ping of leg `k` sent at `sent` was answered; whether it is this round's (to be
+    /// measured). A stale one (a late ping of an earlier round) is answered, not measured, and
+    /// does not count towards the round's end: counted, it would end the round one ping
+    /// early, leave that ping to the next round, and so on every round after.
+    fn answered(&mut self, k: usize, sent: u64) -> bool {
+        if sent < self.since {
+            return false;
+        }
+        self.n += 1;
+        self.expect = (k + 1) % self.legs;
+        true
+    }
+}
+
 /// The `dkrrt latency-echo` process: answers every ping until SIGTERM or `seconds`.
 pub fn echo(sc: &Scenario, ping_run: &str, pong_run: &str, seconds: f64, stats: &Path) -> Result<(), String> {
     signals::install();
@@ -343,28 +388,20 @@ pub fn echo(sc: &Scenario, ping_run: &str, pong_run: &str, seconds: f64, stats: 
         // sides out of step). A ping sent before this window (a late echo) measures our sleep,
         // not the transport: answered (the pinger drops the answer), not recorded.
         sleep_until(ms + (FIRST_SLOT_US - ECHO_LEAD_US) * 1000, signals::stop_requested);
-        let since = mono_ns();
+        let mut round = EchoRound::new(mono_ns(), first_leg(ms), legs);
         let window_end = ms + ROUND_END_US * 1000;
-        let (mut n, mut expect, mut turn) = (0usize, first_leg(ms), 0u64);
-        while n < legs && mono_ns() < window_end {
-            turn += 1;
-            let sweep = turn.is_multiple_of(8);
-            for k in 0..legs {
-                if !(sweep || k == expect) {
-                    continue;
-                }
+        while !round.done() && mono_ns() < window_end {
+            for k in round.to_poll() {
                 let (i, raw_leg) = (k / 2, k % 2 == 1);
                 let (l, h) =
                     if raw_leg { (&mut s.raw[i], &mut raw[i]) } else { (&mut s.bus[i], &mut bus[i]) };
                 if let Some((sent, read)) = l.echo()? {
-                    if sent >= since {
+                    echoed += 1;
+                    if round.answered(k, sent) {
                         h.one_way.record_ns(read.saturating_sub(sent));
                     } else {
                         missed += 1;
                     }
-                    echoed += 1;
-                    n += 1;
-                    expect = (k + 1) % legs;
                 }
             }
         }
@@ -775,4 +812,29 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
         out.display()
     );
     Ok((report, all_met))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stale_ping_neither_counts_nor_ends_the_round_early() {
+        let mut r = EchoRound::new(1_000, 6, 8);
+        // The expected leg first; all of them every 8th turn.
+        assert_eq!(r.to_poll().collect::<Vec<_>>(), [6]);
+        for _ in 0..6 {
+            r.to_poll().for_each(drop);
+        }
+        assert_eq!(r.to_poll().count(), 8);
+        // Last round's late ping of leg 5 turns up first: answered, not this round's.
+        assert!(!r.answered(5, 999));
+        assert_eq!(r.expect, 6);
+        // This round's eight, in the pinger's order from leg 6.
+        for j in 0..8 {
+            assert!(!r.done(), "ended after {j}");
+            assert!(r.answered((6 + j) % 8, 2_000 + j as u64));
+        }
+        assert!(r.done());
+    }
 }

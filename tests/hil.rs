@@ -200,6 +200,10 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
             // Under load some pings time out (counted); most are answered.
             check(&x[path]["one_way_us"], 300.0, &format!("{} {path}", x["type"]));
             check(&x[path]["round_trip_us"], 300.0, &format!("{} {path} round trip", x["type"]));
+            // Unanswered pings are counted, and few: each leg is answered in its round (a round
+            // bookkeeping bug once lost ~30 % of every leg; a loaded 2-core VM loses ≤ 3 %).
+            let answered = num(&x[path], "/round_trip_us/count");
+            assert!(num(&x[path], "/timeouts") <= 0.1 * answered, "{} {path}: {x:#}", x["type"]);
             // A round trip is two one-way trips: its median is not below the one-way median.
             assert!(num(&x[path], "/round_trip_us/p50") >= num(&x[path], "/one_way_us/p50") * 0.9, "{x:#}");
         }
