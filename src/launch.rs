@@ -402,6 +402,8 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
     // tracker died): the rest get SIGTERM after a grace period.
     let mut stop_at: Option<u64> = None;
     let mut kill_sent = false;
+    // The arm emulator's power-off (SIGTERM) was sent: once, not every loop turn.
+    let mut arm_off_sent = false;
     let mut end_at: Option<u64> = None;
     let mut rogue: Vec<(String, u32)> = Vec::new();
     let mut restarts: Vec<Value> = Vec::new();
@@ -562,10 +564,11 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
         }
         // The arm is powered off once nothing else runs (its driver brought it to rest and
         // braked it, or is gone: then the arm's own abort has braked it).
-        if procs.iter().all(|p| p.exit.is_some() || p.name == EMULATOR) {
+        if !arm_off_sent && procs.iter().all(|p| p.exit.is_some() || p.name == EMULATOR) {
             for p in procs.iter().filter(|p| p.exit.is_none() && p.name == EMULATOR) {
                 signal(&p.child, libc::SIGTERM);
             }
+            arm_off_sent = true;
         }
         if let Some(t) = stop_at {
             if !kill_sent && now > t + STOP_KILL_NS {
