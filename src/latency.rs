@@ -562,7 +562,10 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
     }
     let dir = crate::launch::private_dir(&format!("lat{tag}"))?;
     let sc_path = dir.join("scenario.toml");
-    crate::launch::write_private(&sc_path, &sc.to_toml())?;
+    // The echo needs the real-time settings only: without the episode it starts at once
+    // (regenerating an episode can take seconds).
+    let echo_sc = Scenario { episode: None, ..sc.clone() };
+    crate::launch::write_private(&sc_path, &echo_sc.to_toml())?;
     let echo_stats = dir.join("echo.json");
     let exe = std::env::current_exe().map_err(e)?;
     let mut echo_child = std::process::Command::new(&exe)

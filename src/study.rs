@@ -132,7 +132,14 @@ pub fn episode_scenario(
     pose_goal: bool,
 ) -> Result<(Scenario, dkrrt_episodes::Episode), String> {
     let mut sc = base.clone();
-    sc.episode = Some(EpisodeCfg { scene: scene.to_string(), index, seed, duration_s: None, pose_goal });
+    sc.episode = Some(EpisodeCfg {
+        scene: scene.to_string(),
+        index,
+        seed,
+        duration_s: None,
+        pose_goal,
+        max_straight_s: None,
+    });
     let ep = dkrrt_episodes::resolve(&mut sc)?.ok_or("no episode")?;
     Ok((sc, ep))
 }

@@ -53,6 +53,12 @@ pub struct ReplanConfig {
     /// trade it for a clean plan that arrives later (long-horizon bounds are wide; replacing
     /// it every cycle by one just past the look-ahead makes the arrival recede).
     pub keep_earlier_arrival: bool,
+    /// Anytime across cycles: while a clean plan to the goal is kept, still search for an
+    /// earlier arrival every cycle (forecasts tighten as objects come near and pass) and take
+    /// one that arrives at least this much earlier, s. Negative: off (keep the clean plan).
+    pub improve_gain_s: f64,
+    /// ... every this many cycles (1: every cycle).
+    pub improve_every: u32,
 }
 
 impl Default for ReplanConfig {
@@ -69,6 +75,8 @@ impl Default for ReplanConfig {
             enforce_deadline: true,
             rest_react_s: 3.0,
             keep_earlier_arrival: true,
+            improve_gain_s: 0.1,
+            improve_every: 2,
         }
     }
 }
@@ -429,12 +437,20 @@ impl Replanner {
                 (false, false)
             };
         let reaches_goal = self.current_reach == Some(Reach::Goal);
-        if cur_valid && (cur_clean || cur_done) && reaches_goal && !goal_changed {
+        let kept = cur_valid && (cur_clean || cur_done) && reaches_goal && !goal_changed;
+        // A clean plan to the goal is kept; while it still moves (or waits) towards the goal,
+        // the search goes on for an earlier arrival (the cross-cycle anytime improvement).
+        let improving = kept
+            && !cur_done
+            && following
+            && self.cfg.improve_gain_s >= 0.0
+            && self.stats.cycles.is_multiple_of(self.cfg.improve_every.max(1) as u64);
+        if kept && !improving {
             return false;
         }
         // While a valid plan (an escape, or the rest) is kept and the goal is out of reach,
         // retry the goal every few cycles only (backing off to `MAX_BACKOFF` cycles).
-        if self.backoff > 0 && !goal_changed && (cur_valid || cur_id == 0) {
+        if self.backoff > 0 && !goal_changed && !improving && (cur_valid || cur_id == 0) {
             self.backoff -= 1;
             if cur_valid {
                 self.stats.fallbacks.keep += 1;
@@ -470,8 +486,11 @@ impl Replanner {
         if self.stats.first_plan_ms.is_none() && plan.is_some() {
             self.stats.first_plan_ms = Some(took as f64 * 1e-6);
         }
-        self.misses = if plan.is_some_and(|p| p.reach == Reach::Goal) { 0 } else { (self.misses + 1).min(8) };
-        self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
+        if !improving {
+            self.misses =
+                if plan.is_some_and(|p| p.reach == Reach::Goal) { 0 } else { (self.misses + 1).min(8) };
+            self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
+        }
         if let Some(p) = plan {
             // The message the tracker will follow, checked once more before it goes out.
             let look = self.planner.cfg.lookahead_s;
@@ -489,7 +508,11 @@ impl Replanner {
                 && reaches_goal
                 && !goal_changed
                 && p.arrival > cur_arrival + 1e-3;
-            if ok && better && !recedes && !(cur_valid && p.reach == Reach::Escape) {
+            // Improving a kept clean plan: only a clean plan to the goal that arrives clearly
+            // earlier replaces it.
+            let gains =
+                !improving || (p.reach == Reach::Goal && p.arrival < cur_arrival - self.cfg.improve_gain_s);
+            if ok && better && gains && !recedes && !(cur_valid && p.reach == Reach::Escape) {
                 self.accept(out, p.reach);
                 st.fallback = if p.reach == Reach::Escape {
                     self.stats.fallbacks.escape += 1;
@@ -504,6 +527,9 @@ impl Replanner {
             if !ok {
                 self.stats.plans_rejected_by_final_check += 1;
             }
+        }
+        if improving {
+            return false; // the clean plan stays: no fallback
         }
         if cur_valid {
             self.stats.fallbacks.keep += 1;

@@ -299,3 +299,69 @@ fn a_far_conflict_is_not_traded_for_a_later_arrival() {
     assert_eq!(d.status.fallback, Fallback::Keep as u32, "{:?}", d.status);
     assert!(d.status.min_predicted_clearance_m < 0.0, "{:?}", d.status);
 }
+
+/// A sphere of radius `r` at `c` until plant time `leave_s`, then leaving upwards at 3 m/s
+/// (a forecast issued at `t0_ns`).
+fn blocking_until(t0_ns: u64, c: [f64; 3], r: f64, leave_s: f64) -> Box<DebrisForecast> {
+    let mut f = forecast(t0_ns, c, r);
+    for k in 0..40 {
+        let t = t0_ns as f64 * 1e-9 + 0.1 * (k + 1) as f64;
+        f.tracks[0].steps[k].p[2] = c[2] + 3.0 * (t - leave_s).max(0.0);
+    }
+    f
+}
+
+#[test]
+fn a_kept_clean_plan_gives_way_to_an_earlier_arrival_as_the_forecast_clears() {
+    // Where the unobstructed motion puts the end effector 70 % of the way.
+    let mut probe = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    assert!(probe.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out).publish);
+    let free_arrival = out.start_ns as f64 * 1e-9 + out.duration_s;
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&out.sample(0.7 * out.duration_s).p, &mut caps);
+    let c = caps[NJ - 1].b;
+
+    let run = |gain: f64| {
+        let rc = ReplanConfig {
+            forecast_wait_s: 0.0,
+            improve_gain_s: gain,
+            improve_every: 1,
+            ..ReplanConfig::default()
+        };
+        let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
+        let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+        let mut clk = clock();
+        // The first forecast: the object stays on the path until 6 s. The plan goes round it
+        // or waits for it: it arrives late.
+        let d = rp.step(0, &START, idle, Some(&blocking_until(0, c, 0.08, 6.0)), &GOAL, &mut clk, &mut out);
+        assert!(d.publish && d.status.fallback == Fallback::None as u32, "{:?}", d.status);
+        let first = *out;
+        let late = first.start_ns as f64 * 1e-9 + first.duration_s;
+        // A newer forecast: it leaves at 0.5 s. The plan is still clean (nothing to react to).
+        let now = 200_000_000u64;
+        let q_now = first.sample(first.time_of(now)).p;
+        let track = TrackerView { mode: ControllerMode::Track, traj_id: first.traj_id };
+        let d =
+            rp.step(now, &q_now, track, Some(&blocking_until(now, c, 0.08, 0.5)), &GOAL, &mut clk, &mut out);
+        let arrival = rp.current().start_ns as f64 * 1e-9 + rp.current().duration_s;
+        (d, first.traj_id, rp.current().traj_id, late, arrival, rp.stats.fallbacks)
+    };
+    // Improving: the clean plan is traded for one that arrives clearly earlier, and the trade
+    // is no fallback.
+    let (d, first, cur, late, arrival, fb) = run(0.1);
+    assert!(late > free_arrival + 0.5, "the first plan is slowed by the object: {late} vs {free_arrival}");
+    assert!(d.publish && cur != first, "{:?}", d.status);
+    assert!(arrival < late - 0.1, "{arrival} vs {late}");
+    assert_eq!(d.status.fallback, Fallback::None as u32);
+    assert_eq!(fb, Fallbacks::default());
+    // Off: the clean plan is kept, nothing is published.
+    let (d, first, cur, late, arrival, fb) = run(-1.0);
+    assert_eq!(arrival, late);
+    assert!(!d.publish && cur == first, "{:?}", d.status);
+    assert_eq!(fb, Fallbacks::default());
+}

@@ -286,6 +286,11 @@ pub struct EpisodeCfg {
     /// within 1 cm and 0.02 rad), else as the joint goal.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub pose_goal: bool,
+    /// Longest straight motion, s (a short episode, e.g. for a quick HIL run): the big joint is
+    /// one whose 0.5 rad motion fits, and the motion is shrunk until it does. Default: no cap
+    /// (the studies' episodes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_straight_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -970,6 +975,11 @@ impl Scenario {
                     return Err(c.fail("episode.duration_s", d, "must be within (0, 3600] s"));
                 }
             }
+            if let Some(d) = e.max_straight_s {
+                if !(d > 0.0 && d <= 3600.0) {
+                    return Err(c.fail("episode.max_straight_s", d, "must be within (0, 3600] s"));
+                }
+            }
         }
         Ok(())
     }
@@ -1034,6 +1044,11 @@ mod tests {
         let text = DEFAULT_SCENARIO.replace("v_max = [0.10,", "v_max = [1.6,");
         let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
         assert!(e.contains("motion.v_max[0]") && e.contains("velocity limit"), "{e}");
+
+        let text = DEFAULT_SCENARIO.replace("max_straight_s = 3.5", "max_straight_s = -2.0");
+        assert_ne!(text, DEFAULT_SCENARIO);
+        let e = Scenario::from_toml_str(&text, "x").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("episode.max_straight_s") && e.contains("-2"), "{e}");
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! dkrrt-episodes: seeded threat episodes for every scene.
 //!
 //! An episode is a start and a goal configuration that need a real motion (≥ 0.5 rad on some
-//! joint), the scene's debris, and 1–3 of its objects re-aimed so that the true dynamics
+//! joint; with `episode.max_straight_s`, a straight motion no longer than that, for short
+//! runs), the scene's debris, and 1–3 of its objects re-aimed so that the true dynamics
 //! (nonlinear relative orbit, tumbling, the scene's perturbations and events) bring them onto
 //! a point of the arm's **straight** motion (the jerk-limited line the `straight` method
 //! drives) at a chosen time:
@@ -38,6 +39,12 @@ pub const ATTEMPTS: u32 = 500;
 
 /// No object comes closer than this to the arm at rest at its start or goal, m.
 pub const REST_CLEARANCE_M: f64 = 0.3;
+
+/// Earliest threat time of a capped episode, s (a predictor has observed ~60 frames by then).
+pub const CAPPED_HIT_S: f64 = 1.2;
+
+/// The motion of an episode's big joint at least, rad.
+pub const MIN_MOTION_RAD: f64 = 0.5;
 
 /// One re-aimed object.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -123,14 +130,46 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
     let ql = model.limits();
     // Why draws were rejected: [small motion, shooting missed, a threat reaches the arm at rest,
     // too many background objects would].
-    let mut why = [0u32; 4];
+    let mut why = [0u32; 5];
+    // A capped episode: the big joint is one whose 0.5 rad motion alone fits the cap.
+    let eligible: Vec<usize> = match cfg.max_straight_s {
+        None => (0..4).collect(),
+        Some(cap) => {
+            let alone = |j: usize| -> Result<f64, String> {
+                let mut g = [0.0; NJ];
+                g[j] = MIN_MOTION_RAD;
+                Ok(straight(&[0.0; NJ], &g, &lim)?.duration())
+            };
+            let mut e = Vec::new();
+            let mut fastest = f64::INFINITY;
+            for j in 0..4 {
+                let d = alone(j)?;
+                fastest = fastest.min(d);
+                if d <= cap {
+                    e.push(j);
+                }
+            }
+            if e.is_empty() {
+                return Err(format!(
+                    "episode.max_straight_s = {cap} s: shorter than a {MIN_MOTION_RAD} rad motion of any of the \
+                     first four joints within motion.v_max/a_max/j_max (fastest: {fastest:.2} s)"
+                ));
+            }
+            e
+        }
+    };
+    let capped = cfg.max_straight_s.is_some();
     for attempt in 0..ATTEMPTS {
         // Start and goal: a real motion (≥ 0.5 rad on one of the first four joints).
         let start: [f64; NJ] = std::array::from_fn(|i| {
             (center[i] + rng.random_range(-0.5..0.5)).clamp(ql.q_min[i] + 0.1, ql.q_max[i] - 0.1)
         });
-        let big = rng.random_range(0..4);
-        let goal: [f64; NJ] = std::array::from_fn(|i| {
+        let big = if cfg.max_straight_s.is_none() {
+            rng.random_range(0..4)
+        } else {
+            eligible[rng.random_range(0..eligible.len())]
+        };
+        let mut goal: [f64; NJ] = std::array::from_fn(|i| {
             let d = if i == big {
                 rng.random_range(0.5..0.9) * if rng.random::<bool>() { 1.0 } else { -1.0 }
             } else {
@@ -138,11 +177,28 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
             };
             (start[i] + d).clamp(ql.q_min[i] + 0.1, ql.q_max[i] - 0.1)
         });
-        if (0..NJ).map(|i| (goal[i] - start[i]).abs()).fold(0.0, f64::max) < 0.5 {
+        if (0..NJ).map(|i| (goal[i] - start[i]).abs()).fold(0.0, f64::max) < MIN_MOTION_RAD {
             why[0] += 1;
             continue;
         }
-        let tr = straight(&start, &goal, &lim)?;
+        let mut tr = straight(&start, &goal, &lim)?;
+        if let Some(cap) = cfg.max_straight_s {
+            // Shrink the motion (the big joint no further than 0.5 rad) until it fits the cap.
+            let mut rounds = 0;
+            while tr.duration() > cap && rounds < 30 {
+                for i in 0..NJ {
+                    let d = goal[i] - start[i];
+                    let floor = if i == big { MIN_MOTION_RAD.min(d.abs()) } else { 0.0 };
+                    goal[i] = start[i] + d.signum() * (0.85 * d.abs()).max(floor);
+                }
+                tr = straight(&start, &goal, &lim)?;
+                rounds += 1;
+            }
+            if tr.duration() > cap {
+                why[4] += 1;
+                continue;
+            }
+        }
         let d = tr.duration();
         let time_limit = 3.0 * d + 10.0;
         let mut scene = base_scene.clone();
@@ -159,7 +215,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
         let mut ok = true;
         for _ in 0..n_threats.min(pool.len()) {
             let k = pool.swap_remove(rng.random_range(0..pool.len()));
-            match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, &mut rng)? {
+            match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, capped, &mut rng)? {
                 Some(t) => threats.push((k, t)),
                 None => {
                     why[1] += 1;
@@ -188,7 +244,7 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
                     break None;
                 }
                 let k = threats[ti].0;
-                match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, &mut rng)? {
+                match aim(&mut scene, k, &tr, &poser, (v_lo, v_hi), base, capped, &mut rng)? {
                     Some(t) => threats[ti].1 = t,
                     None => {
                         why[1] += 1;
@@ -248,13 +304,15 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
     }
     Err(format!(
         "episode {:?} #{} (seed {}): no solvable draw in {ATTEMPTS} attempts (rejected: {} small motions, {} missed aims, \
-         {} threats reaching the arm at rest, {} with too many background objects doing so)",
-        cfg.scene, cfg.index, cfg.seed, why[0], why[1], why[2], why[3]
+         {} threats reaching the arm at rest, {} with too many background objects doing so, {} motions \
+         longer than episode.max_straight_s)",
+        cfg.scene, cfg.index, cfg.seed, why[0], why[1], why[2], why[3], why[4]
     ))
 }
 
 /// Aims object `k` at a point of the arm on the straight motion `tr` (see the crate docs);
 /// `None` when the shooting does not converge.
+#[allow(clippy::too_many_arguments)]
 fn aim(
     scene: &mut Scene,
     k: usize,
@@ -262,10 +320,17 @@ fn aim(
     poser: &ArmPoser,
     (v_lo, v_hi): (f64, f64),
     base: [f64; 3],
+    capped: bool,
     rng: &mut SmallRng,
 ) -> Result<Option<Threat>, String> {
     let d = tr.duration();
-    let t_hit = (rng.random_range(0.3..0.75) * d).max(2.0).min(d);
+    // A short (capped) motion is hit near its middle, from 1.2 s on: later, the arm is nearly
+    // at its goal and no draw keeps the goal pose clear.
+    let t_hit = if capped {
+        (rng.random_range(0.3..0.6) * d).max(CAPPED_HIT_S).min(d)
+    } else {
+        (rng.random_range(0.3..0.75) * d).max(2.0).min(d)
+    };
     let q_hit = tr.at(t_hit).p;
     let q_next = tr.at(t_hit + 0.05).p;
     let (mut caps, mut caps_next) = ([PosedCapsule::default(); NJ], [PosedCapsule::default(); NJ]);

@@ -10,8 +10,18 @@ use dkrrt_otg::Limits;
 
 fn ep(scene: &str, index: u64) -> Episode {
     let sc = Scenario::default_scenario();
-    generate(&EpisodeCfg { scene: scene.into(), index, seed: 77, duration_s: None, pose_goal: false }, &sc)
-        .unwrap()
+    generate(
+        &EpisodeCfg {
+            scene: scene.into(),
+            index,
+            seed: 77,
+            duration_s: None,
+            pose_goal: false,
+            max_straight_s: None,
+        },
+        &sc,
+    )
+    .unwrap()
 }
 
 /// The smallest distance between the debris and the arm posed by `q_of(t)`, every 10 ms to
@@ -113,6 +123,7 @@ fn resolving_puts_the_episode_into_the_scenario() {
         seed: 5,
         duration_s: Some(12.0),
         pose_goal: false,
+        max_straight_s: None,
     });
     let e = resolve(&mut sc).unwrap().unwrap();
     assert_eq!(sc.sim.initial_q, e.start);
@@ -120,7 +131,51 @@ fn resolving_puts_the_episode_into_the_scenario() {
     assert_eq!(sc.run.duration_s, 12.0);
     assert_eq!(sc.load_debris_scene().unwrap(), e.scene);
     let mut bad = Scenario::default_scenario();
-    bad.episode =
-        Some(EpisodeCfg { scene: "nowhere".into(), index: 0, seed: 1, duration_s: None, pose_goal: false });
+    bad.episode = Some(EpisodeCfg {
+        scene: "nowhere".into(),
+        index: 0,
+        seed: 1,
+        duration_s: None,
+        pose_goal: false,
+        max_straight_s: None,
+    });
     assert!(resolve(&mut bad).unwrap_err().contains("episode.scene"));
+}
+
+#[test]
+fn a_capped_episode_is_a_short_real_motion_still_hit_and_solvable() {
+    let sc = Scenario::default_scenario();
+    let lim = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    let cfg = |index, cap| EpisodeCfg {
+        scene: "fast-crossing".into(),
+        index,
+        seed: 4242,
+        duration_s: None,
+        pose_goal: false,
+        max_straight_s: Some(cap),
+    };
+    let mut made = 0;
+    for i in 0..4 {
+        // A draw may find no solvable episode near so short a motion: a clear error, not a
+        // long one.
+        let e = match generate(&cfg(i, 3.5), &sc) {
+            Ok(e) => e,
+            Err(m) => {
+                assert!(m.contains("no solvable draw"), "{m}");
+                continue;
+            }
+        };
+        made += 1;
+        assert!(e.straight_duration_s <= 3.5 + 1e-9, "#{i}: {} s", e.straight_duration_s);
+        assert!((0..NJ).any(|j| (e.goal[j] - e.start[j]).abs() >= 0.5 - 1e-12), "#{i}: a real motion");
+        let tr = straight(&e.start, &e.goal, &lim).unwrap();
+        assert!(min_distance(&e, tr.duration(), |t| tr.at(t).p) <= 0.0, "#{i}: the straight motion is hit");
+        let (s, g) = (e.start, e.goal);
+        assert!(min_distance(&e, e.time_limit_s, |_| s) >= REST_CLEARANCE_M - 0.02);
+        assert!(min_distance(&e, e.time_limit_s, |_| g) >= REST_CLEARANCE_M - 0.02);
+    }
+    assert!(made >= 2, "only {made} of 4 capped draws succeeded");
+    // No joint can move 0.5 rad in 1 s within the motion limits: refused, naming the field.
+    let err = generate(&cfg(0, 1.0), &sc).unwrap_err();
+    assert!(err.contains("episode.max_straight_s") && err.contains("fastest"), "{err}");
 }
