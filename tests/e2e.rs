@@ -651,7 +651,9 @@ fn a_run_is_recorded_to_mcap_and_replayed_on_a_new_run() {
     let lim = dkrrt_msg::ContractLimits::symmetric(10.0, 10.0, 1000.0);
     let (tx, rx) = std::sync::mpsc::channel();
     let (f2, run2) = (file.clone(), run.clone());
-    std::thread::spawn(move || tx.send(dkrrt::mcap_io::replay(&f2, &run2, 0.0)).unwrap());
+    // At the recorded pace: as fast as possible, the replay outran this reader whenever it was
+    // descheduled for a moment (a full buffer refuses samples, and nobody counts them).
+    std::thread::spawn(move || tx.send(dkrrt::mcap_io::replay(&f2, &run2, 1.0)).unwrap());
     let mut seen = 0u64;
     let rep = loop {
         seen += sub.for_each(&lim, |_| {}).unwrap() as u64;
