@@ -77,7 +77,7 @@ fn realtime_run_reaches_the_goal_with_a_sane_report() {
     let dir = std::env::temp_dir().join(format!("dkrrt-rt-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let sc = dir.join("tolerant.toml");
-    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 3 ", "stale_ticks = 20 ");
+    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 10 ", "stale_ticks = 20 ");
     assert_ne!(text, dkrrt_config::DEFAULT_SCENARIO);
     std::fs::write(&sc, text).unwrap();
     let out = Command::new(exe())
@@ -449,7 +449,7 @@ fn a_broken_scenario_is_refused_naming_the_field() {
     let dir = std::env::temp_dir().join(format!("dkrrt-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join("bad.toml");
-    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 3", "stale_ticks = 0");
+    let text = dkrrt_config::DEFAULT_SCENARIO.replace("stale_ticks = 10", "stale_ticks = 0");
     std::fs::write(&p, text).unwrap();
     let out = Command::new(exe()).args(["launch", "--scenario"]).arg(&p).output().unwrap();
     assert!(!out.status.success());
@@ -685,7 +685,7 @@ fn a_goal_message_retargets_a_run_without_debris() {
         .replacen("method = \"dk-rrt\"", "method = \"straight\"", 1)
         .replacen("duration_s = 8.0", "duration_s = 16.0", 1)
         // About the goal message, not the VM's stalls (as the real-time test above).
-        .replacen("stale_ticks = 3 ", "stale_ticks = 20 ", 1);
+        .replacen("stale_ticks = 10 ", "stale_ticks = 20 ", 1);
     std::fs::write(&sc, &text).unwrap();
     let run = format!("e2e-goal-{}", std::process::id());
     let rp = report_path("goalmsg");

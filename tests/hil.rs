@@ -26,7 +26,7 @@ fn scenario(dir: &std::path::Path, extra: &str) -> std::path::PathBuf {
     let i = text.find("\n[episode]").unwrap() + 1;
     let j = i + text[i..].find("\n[debris]").unwrap();
     let text = format!("{}{}", &text[..i], &text[j + 1..])
-        .replace("stale_ticks = 3 ", "stale_ticks = 20 ")
+        .replace("stale_ticks = 10 ", "stale_ticks = 20 ")
         .replace("method = \"dk-rrt\"", "method = \"straight\"")
         .replace("duration_s = 8.0", "duration_s = 6.0");
     // An `extra` [udp] table replaces the default's.
@@ -69,8 +69,9 @@ fn over_udp_with_delay_and_loss_the_arm_is_tracked_as_well_as_with_the_simulator
     // and reordered), 6 s, tolerant of a stalling VM (20 stale ticks before a safe hold).
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/hil-lossy.toml");
     let text = std::fs::read_to_string(shipped).unwrap();
-    let tolerant =
-        text.replace("stale_ticks = 3 ", "stale_ticks = 20 ").replace("duration_s = 8.0", "duration_s = 6.0");
+    let tolerant = text
+        .replace("stale_ticks = 10 ", "stale_ticks = 20 ")
+        .replace("duration_s = 8.0", "duration_s = 6.0");
     assert!(tolerant.contains("stale_ticks = 20 ") && tolerant.contains("duration_s = 6.0"));
     let sc = dir.join("hil-lossy.toml");
     std::fs::write(&sc, tolerant).unwrap();

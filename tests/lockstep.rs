@@ -50,7 +50,7 @@ fn the_straight_source_reissues_its_goal_after_a_safe_hold() {
     sc.debris.scene.clear();
     sc.planner.method = "straight".into();
     let mut ls = Lockstep::new(&sc).unwrap();
-    // 1 s of motion, then 20 lost states mid-motion (the tracker's stale limit is 3): safe hold.
+    // 1 s of motion, then 20 lost states mid-motion (the tracker's stale limit is 10): safe hold.
     for _ in 0..1000 {
         ls.tick(true);
     }

@@ -46,7 +46,7 @@ fn physically_senseless_values_are_refused_naming_the_field() {
         ),
         ("noise_q_std = 0.0", "noise_q_std = 1e300", "sim.noise_q_std"),
         ("noise_qd_std = 0.0", "noise_qd_std = 5.0", "sim.noise_qd_std"),
-        ("stale_ticks = 3", "stale_ticks = 4000000000", "tracker.stale_ticks"),
+        ("stale_ticks = 10", "stale_ticks = 4000000000", "tracker.stale_ticks"),
         ("command_timeout_ticks = 20", "command_timeout_ticks = 100000", "sim.command_timeout_ticks"),
         ("gravity = [0.0, 0.0, 0.0]", "gravity = [0.0, 0.0, 1e200]", "robot.gravity[2]"),
         ("duration_s = 8.0", "duration_s = 1e11", "run.duration_s"),
@@ -77,7 +77,7 @@ fn errors_name_the_file_not_the_scenario_name_and_escape_control_characters() {
     let p = write(
         "named.toml",
         &DEFAULT_SCENARIO.replacen("name = \"default\"", "name = \"x\\u001b[31mred\"", 1).replacen(
-            "stale_ticks = 3",
+            "stale_ticks = 10",
             "stale_ticks = 0",
             1,
         ),
