@@ -54,10 +54,10 @@ pub struct ReplanConfig {
     /// it every cycle by one just past the look-ahead makes the arrival recede).
     pub keep_earlier_arrival: bool,
     /// Anytime across cycles: while a clean plan to the goal is kept, still search for an
-    /// earlier arrival every cycle (forecasts tighten as objects come near and pass) and take
-    /// one that arrives at least this much earlier, s. Negative: off (keep the clean plan).
+    /// earlier arrival (forecasts tighten as objects come near and pass) and take one that
+    /// arrives at least this much earlier, s. Negative: off (keep the clean plan).
     pub improve_gain_s: f64,
-    /// ... every this many cycles (1: every cycle).
+    /// That search runs every this many cycles (1: every cycle).
     pub improve_every: u32,
 }
 

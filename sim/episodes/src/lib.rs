@@ -8,7 +8,7 @@
 //! drives) at a chosen time:
 //!
 //! 1. pick an object, a time `t_hit` in 30–75 % of the straight motion (≥ 2 s, so a predictor
-//!    has observed it), a link of the arm and a point on its capsule axis at that time, and a
+//!    has observed it; a capped episode: 30–60 %, ≥ 1.2 s), a link of the arm and a point on its capsule axis at that time, and a
 //!    velocity (the scene's speed range, a random direction);
 //! 2. find the object's initial position by **shooting**: start from the straight-line
 //!    back-projection `p0 = p_hit − v·t_hit`, simulate the whole scene with the true dynamics
@@ -164,11 +164,8 @@ pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
         let start: [f64; NJ] = std::array::from_fn(|i| {
             (center[i] + rng.random_range(-0.5..0.5)).clamp(ql.q_min[i] + 0.1, ql.q_max[i] - 0.1)
         });
-        let big = if cfg.max_straight_s.is_none() {
-            rng.random_range(0..4)
-        } else {
-            eligible[rng.random_range(0..eligible.len())]
-        };
+        let big =
+            if !capped { rng.random_range(0..4) } else { eligible[rng.random_range(0..eligible.len())] };
         let mut goal: [f64; NJ] = std::array::from_fn(|i| {
             let d = if i == big {
                 rng.random_range(0.5..0.9) * if rng.random::<bool>() { 1.0 } else { -1.0 }
