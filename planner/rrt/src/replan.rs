@@ -13,6 +13,9 @@
 //!    published; a plan that fails is never published;
 //! 5. no valid plan: keep the active one if it is still valid from the commit time, else the
 //!    best escape (a safe haven), else a brake to rest from the commit state. Each is counted.
+//!
+//! A plan whose predicted conflict lies beyond the reaction time is kept (newer forecasts
+//! often clear it) only while an escape from it is known: see [`Replanner::hold_conflicting`].
 
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::{ControllerMode, DebrisForecast, Fallback, PlanStatus, Trajectory, Zeroed};
@@ -153,6 +156,12 @@ pub struct Replanner {
     model: ArmModel,
     current: Box<Trajectory>,
     current_reach: Option<Reach>,
+    /// A clean alternative to a conflicting active plan, branching off it at the next
+    /// cycle's commit time (see [`Replanner::hold_conflicting`]); id 0: none.
+    backup: Box<Trajectory>,
+    backup_reach: Reach,
+    /// The active plan's id when the backup was made.
+    backup_of: u64,
     goal: Option<[f64; NJ]>,
     have_forecast: bool,
     has_debris: bool,
@@ -185,6 +194,9 @@ impl Replanner {
             world: WorldInTime::new(cfg.margin_m),
             current: Box::new(<Trajectory as Zeroed>::zeroed()),
             current_reach: None,
+            backup: Box::new(<Trajectory as Zeroed>::zeroed()),
+            backup_reach: Reach::Escape,
+            backup_of: 0,
             goal: None,
             have_forecast: false,
             has_debris,
@@ -429,15 +441,18 @@ impl Replanner {
                 // A predicted conflict further ahead than the reaction time is not acted on by
                 // leaving the plan: newer forecasts (smaller bounds) decide, rather than leaving
                 // a motion that is clear for now for one found in a hurry. At rest at the end of
-                // the plan that is `rest_react_s`; while moving `move_react_s`, and a plan that is
-                // clear all the way is still sought every cycle.
+                // the plan that is `rest_react_s`; while moving `move_react_s`.
                 let react = if cur_done { self.cfg.rest_react_s } else { self.cfg.move_react_s };
                 (c.ok || c.t_fail > t_now + react, c.ok)
             } else {
                 (false, false)
             };
         let reaches_goal = self.current_reach == Some(Reach::Goal);
-        let kept = cur_valid && (cur_clean || cur_done) && reaches_goal && !goal_changed;
+        // Such a plan is kept only while an escape from it is known.
+        if cur_valid && !cur_clean && !goal_changed && (following || cur_done) {
+            return self.hold_conflicting(t_now, reaches_goal, cur_done, clock, c_start, st, out);
+        }
+        let kept = cur_valid && cur_clean && reaches_goal && !goal_changed;
         // A clean plan to the goal is kept; while it still moves (or waits) towards the goal,
         // the search goes on for an earlier arrival (the cross-cycle anytime improvement).
         let improving = kept
@@ -472,47 +487,19 @@ impl Replanner {
         } else {
             KinState::rest(*q_meas)
         };
-        let req = Request { start, t0: t_c, goal: *goal_for(self.goal.as_ref()) };
-        let deadline =
-            if self.cfg.enforce_deadline { c_start + (self.cfg.deadline_s * 1e9) as u64 } else { u64::MAX };
         let id = self.next_id;
-        self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
-        let plan = self.planner.plan(&req, &self.world, self.cfg.iterations, || clock() < deadline, id, out);
-        self.last_plan = self.planner.stats;
-        self.stats.planner_iterations += self.planner.stats.iterations as u64;
-        st.iterations = self.planner.stats.iterations;
-        let took = clock().saturating_sub(c_start);
-        self.plan_hist.record_ns(took);
-        if self.stats.first_plan_ms.is_none() && plan.is_some() {
-            self.stats.first_plan_ms = Some(took as f64 * 1e-6);
-        }
-        if !improving {
-            self.misses =
-                if plan.is_some_and(|p| p.reach == Reach::Goal) { 0 } else { (self.misses + 1).min(8) };
-            self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
-        }
+        let plan = self.search(&start, t_c, clock, c_start, !improving, st, out);
         if let Some(p) = plan {
             // The message the tracker will follow, checked once more before it goes out.
             let look = self.planner.cfg.lookahead_s;
             let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_c, t_c + look);
             let better = !cur_clean || !reaches_goal || goal_changed || p.reach == Reach::Goal;
-            // A moving plan to the goal whose only conflict is beyond the reaction time is not
-            // traded for one that arrives later: long-horizon bounds are wide, and a clean
-            // replacement found every cycle just past the look-ahead makes the arrival recede
-            // cycle after cycle. The kept plan is re-checked every cycle; a conflict that is
-            // still there within the reaction time makes it invalid and it is left then.
-            let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
-            let recedes = self.cfg.keep_earlier_arrival
-                && cur_valid
-                && !cur_done
-                && reaches_goal
-                && !goal_changed
-                && p.arrival > cur_arrival + 1e-3;
             // Improving a kept clean plan: only a clean plan to the goal that arrives clearly
             // earlier replaces it.
+            let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
             let gains =
                 !improving || (p.reach == Reach::Goal && p.arrival < cur_arrival - self.cfg.improve_gain_s);
-            if ok && better && gains && !recedes && !(cur_valid && p.reach == Reach::Escape) {
+            if ok && better && gains && !(cur_valid && p.reach == Reach::Escape) {
                 self.accept(out, p.reach);
                 st.fallback = if p.reach == Reach::Escape {
                     self.stats.fallbacks.escape += 1;
@@ -536,16 +523,135 @@ impl Replanner {
             st.fallback = Fallback::Keep as u32;
             return false;
         }
+        // The escape known from the last cycle (it starts at this cycle's commit time).
+        if self.take_backup(t_now, st, out) {
+            return true;
+        }
         // Brake to rest from the commit state (nothing valid is known).
         self.stats.fallbacks.brake += 1;
         st.fallback = Fallback::Brake as u32;
         let moving = start.v.iter().chain(start.a.iter()).any(|x| x.abs() > 1e-12);
-        if !moving {
-            return false; // already at rest: hold (the tracker holds without a new plan)
+        if !moving || !self.brake_into(&start, id, c_ns, out) {
+            return false; // at rest: hold (the tracker holds without a new plan)
         }
+        self.accept(out, Reach::Escape);
+        st.active_traj_id = id;
+        true
+    }
+
+    /// The active plan (moving, or resting at its end) has a predicted conflict beyond the
+    /// reaction time. Newer forecasts, with tighter bounds, often clear such a conflict, so the
+    /// plan is not left for a worse one yet, but only while an escape from it is known: else
+    /// the conflict can come within the reaction time where no escape is left (a plan followed
+    /// into a trap). Every cycle works from the plan's state at the *next* cycle's commit time
+    /// `t_b`: the brake to rest from there is tried, and a search runs (unless backing off with
+    /// the brake clean). A clean plan to the goal arriving no later than the active one is
+    /// published (the tracker splices it in at `t_b`); any other clean plan (an escape, a later
+    /// arrival, the brake) becomes the *backup*. When this cycle finds nothing clean, the
+    /// backup of the last cycle, which starts at this cycle's commit time, is published.
+    #[allow(clippy::too_many_arguments)]
+    fn hold_conflicting(
+        &mut self,
+        t_now: f64,
+        reaches_goal: bool,
+        cur_done: bool,
+        clock: &mut dyn FnMut() -> u64,
+        c_start: u64,
+        st: &mut PlanStatus,
+        out: &mut Trajectory,
+    ) -> bool {
+        let look = self.planner.cfg.lookahead_s;
+        let t_b = t_now + self.cfg.commit_s + self.cfg.cycle_s;
+        let b_ns = (t_b * 1e9).round() as u64;
+        let id = self.next_id;
+        let s = self.current.sample(self.current.time_of(b_ns));
+        let start = if cur_done { KinState::rest(s.p) } else { KinState { p: s.p, v: s.v, a: s.a } };
+        let moving = start.v.iter().chain(start.a.iter()).any(|x| x.abs() > 1e-12);
+        let mut known = false;
+        if moving && self.brake_into(&start, id, b_ns, out) {
+            known = check_message(&mut self.planner, &self.world, out, t_b, t_b + look).0;
+            if known {
+                self.set_backup(out, Reach::Escape);
+            }
+        }
+        if !(known && self.backoff > 0) {
+            let plan = self.search(&start, t_b, clock, c_start, true, st, out);
+            if let Some(p) = plan {
+                let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_b, t_b + look);
+                let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
+                let no_later = p.reach == Reach::Goal
+                    && (!reaches_goal || !self.cfg.keep_earlier_arrival || p.arrival <= cur_arrival + 1e-3);
+                if ok && no_later {
+                    self.accept(out, p.reach);
+                    st.fallback = Fallback::None as u32;
+                    st.active_traj_id = id;
+                    st.min_predicted_clearance_m = clear;
+                    return true;
+                }
+                if ok {
+                    self.set_backup(out, p.reach);
+                    known = true;
+                } else {
+                    self.stats.plans_rejected_by_final_check += 1;
+                }
+            }
+        } else {
+            self.backoff -= 1;
+        }
+        if !known && self.take_backup(t_now, st, out) {
+            return true;
+        }
+        self.stats.fallbacks.keep += 1;
+        st.fallback = Fallback::Keep as u32;
+        false
+    }
+
+    /// Runs the planner from `start` at plant time `t0` into `out`, with the cycle's budget
+    /// and deadline, and books it (`count_miss`: a plan short of the goal grows the backoff).
+    #[allow(clippy::too_many_arguments)]
+    fn search(
+        &mut self,
+        start: &KinState<NJ>,
+        t0: f64,
+        clock: &mut dyn FnMut() -> u64,
+        c_start: u64,
+        count_miss: bool,
+        st: &mut PlanStatus,
+        out: &mut Trajectory,
+    ) -> Option<crate::rrt::Plan> {
+        let req = Request { start: *start, t0, goal: *goal_for(self.goal.as_ref()) };
+        let deadline =
+            if self.cfg.enforce_deadline { c_start + (self.cfg.deadline_s * 1e9) as u64 } else { u64::MAX };
+        self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
+        let plan = self.planner.plan(
+            &req,
+            &self.world,
+            self.cfg.iterations,
+            || clock() < deadline,
+            self.next_id,
+            out,
+        );
+        self.last_plan = self.planner.stats;
+        self.stats.planner_iterations += self.planner.stats.iterations as u64;
+        st.iterations = self.planner.stats.iterations;
+        let took = clock().saturating_sub(c_start);
+        self.plan_hist.record_ns(took);
+        if self.stats.first_plan_ms.is_none() && plan.is_some() {
+            self.stats.first_plan_ms = Some(took as f64 * 1e-6);
+        }
+        if count_miss {
+            self.misses =
+                if plan.is_some_and(|p| p.reach == Reach::Goal) { 0 } else { (self.misses + 1).min(8) };
+            self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
+        }
+        plan
+    }
+
+    /// Writes into `out` the brake to rest from the moving state `start` at `start_ns`.
+    fn brake_into(&self, start: &KinState<NJ>, id: u64, start_ns: u64, out: &mut Trajectory) -> bool {
         let lim = *self.planner.limits();
         let Ok(br) = dkrrt_otg::Trajectory::calculate_velocity(
-            &start,
+            start,
             &[0.0; NJ],
             &[0.0; NJ],
             &lim,
@@ -553,18 +659,48 @@ impl Replanner {
         ) else {
             return false;
         };
-        let mut b = Builder::new(out, id, c_ns);
+        let mut b = Builder::new(out, id, start_ns);
         if b.otg(&br).is_err() {
             return false;
         }
         b.finish();
-        self.accept(out, Reach::Escape);
-        st.active_traj_id = id;
+        true
+    }
+
+    /// Remembers a clean alternative to the active plan (see [`Self::hold_conflicting`]).
+    fn set_backup(&mut self, tr: &Trajectory, reach: Reach) {
+        *self.backup = *tr;
+        self.backup_reach = reach;
+        self.backup_of = self.current.traj_id;
+    }
+
+    /// Publishes the backup if it branches off the active plan, still starts at least about
+    /// the commit lead ahead (`commit_s` less half its slack over the deadline) and is still
+    /// clean against the newest forecast.
+    fn take_backup(&mut self, t_now: f64, st: &mut PlanStatus, out: &mut Trajectory) -> bool {
+        let start = self.backup.start_ns as f64 * 1e-9;
+        let lead = self.cfg.commit_s - 0.5 * (self.cfg.commit_s - self.cfg.deadline_s).max(0.0);
+        if self.backup.traj_id == 0 || self.backup_of != self.current.traj_id || start < t_now + lead {
+            return false;
+        }
+        let look = self.planner.cfg.lookahead_s;
+        let (ok, clear) = check_message(&mut self.planner, &self.world, &self.backup, start, start + look);
+        if !ok {
+            return false;
+        }
+        *out = *self.backup;
+        out.traj_id = self.next_id;
+        st.active_traj_id = self.next_id;
+        st.min_predicted_clearance_m = clear;
+        self.stats.fallbacks.escape += 1;
+        st.fallback = Fallback::Escape as u32;
+        self.accept(out, self.backup_reach);
         true
     }
 
     fn accept(&mut self, out: &Trajectory, reach: Reach) {
         *self.current = *out;
+        self.backup.traj_id = 0;
         self.current_reach = Some(reach);
         self.next_id += 1;
         self.stats.replans += 1;

@@ -365,3 +365,120 @@ fn a_kept_clean_plan_gives_way_to_an_earlier_arrival_as_the_forecast_clears() {
     assert!(!d.publish && cur == first, "{:?}", d.status);
     assert_eq!(fb, Fallbacks::default());
 }
+
+/// The end effector's position (link 6 capsule centre) at `q`.
+fn ee_at(q: &[f64; NJ]) -> [f64; 3] {
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(q, &mut caps);
+    caps[NJ - 1].centre
+}
+
+/// Track `k` of `f`: a sphere of radius `r` that comes in radially from outside the arm at
+/// 3 m/s and sits at `c` from plant time `arrive_s` on.
+fn sit_from(f: &mut DebrisForecast, k: usize, c: [f64; 3], r: f64, arrive_s: f64) {
+    let h = (c[0] * c[0] + c[1] * c[1]).sqrt();
+    let u = [c[0] / h, c[1] / h, 0.0];
+    let t0 = f.t0_ns as f64 * 1e-9;
+    f.count = f.count.max(k as u32 + 1);
+    f.tracks[k].id = 10 + k as u32;
+    f.tracks[k].bounding_radius = r;
+    f.tracks[k].shape = DebrisShape::sphere(r);
+    for i in 0..40 {
+        let d = 3.0 * (arrive_s - (t0 + 0.1 * (i + 1) as f64)).max(0.0);
+        let p = [c[0] + d * u[0], c[1] + d * u[1], c[2]];
+        f.tracks[k].steps[i] = ForecastStep { p, q: [1.0, 0.0, 0.0, 0.0], sigma_m: 0.01, sigma_pos_m: 0.01 };
+    }
+}
+
+#[test]
+fn a_plan_kept_with_a_far_conflict_gives_way_to_its_known_escape_when_none_is_found_any_more() {
+    // Moving on its plan, the arm learns of two objects arriving 3.3 s from now (beyond the
+    // 3 s reaction time): one where the plan will be, one where braking would stop it. The
+    // plan is kept while an escape from it is known; when a cycle finds none (here: a budget
+    // of 0 iterations leaves only the brake and the direct motion, both blocked), the escape
+    // found the cycle before is published, spliced in at its start.
+    let run = |first_budget: u32| {
+        let mut rp = replanner();
+        let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+        let mut clk = clock();
+        let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+        let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+        assert!(rp.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out).publish);
+        let plan = *out;
+        let track = TrackerView { mode: ControllerMode::Track, traj_id: plan.traj_id };
+        let now1 = 300_000_000u64;
+        let t_arr = now1 as f64 * 1e-9 + 3.3;
+        let world = |now: u64| {
+            let mut f = forecast(now, [50.0, 0.0, 0.0], 0.05);
+            // Where the plan will be just after the arrival, and where a brake started at
+            // this cycle's or the next one's commit time stops.
+            let later = plan.sample(plan.time_of(((t_arr + 0.4) * 1e9) as u64)).p;
+            sit_from(&mut f, 1, ee_at(&later), 0.12, t_arr);
+            let at = plan.sample(plan.time_of(now1 + 160_000_000));
+            let lim = limits();
+            let stop = dkrrt_otg::Trajectory::calculate_velocity(
+                &dkrrt_otg::KinState { p: at.p, v: at.v, a: at.a },
+                &[0.0; NJ],
+                &[0.0; NJ],
+                &lim,
+                &dkrrt_otg::Options::default(),
+            )
+            .unwrap()
+            .final_state()
+            .p;
+            sit_from(&mut f, 2, ee_at(&stop), 0.2, t_arr);
+            f
+        };
+        rp.cfg.iterations = first_budget;
+        let q1 = plan.sample(plan.time_of(now1)).p;
+        let d1 = rp.step(now1, &q1, track, Some(&world(now1)), &GOAL, &mut clk, &mut out);
+        rp.cfg.iterations = 0;
+        let now2 = now1 + 100_000_000;
+        let q2 = plan.sample(plan.time_of(now2)).p;
+        let f2 = world(now2);
+        let d2 = rp.step(now2, &q2, track, Some(&f2), &GOAL, &mut clk, &mut out);
+        (rp, plan, d1, d2, *out, f2)
+    };
+    // With a search in the first cycle: an escape is known there, so the plan is kept...
+    let (mut rp, plan, d1, d2, out, _) = run(300);
+    assert!(!d1.publish, "{:?}", d1.status);
+    assert_eq!(d1.status.fallback, Fallback::Keep as u32, "{:?}", d1.status);
+    assert!(d1.status.min_predicted_clearance_m < 0.0, "the conflict is seen: {:?}", d1.status);
+    // ...and when the next cycle finds none, that escape goes out: at the next commit time
+    // of the first cycle, continuing the plan exactly, clean against the forecast.
+    assert!(d2.publish, "{:?}", d2.status);
+    assert_eq!(d2.status.fallback, Fallback::Escape as u32, "{:?}", d2.status);
+    assert_eq!(rp.current().traj_id, out.traj_id);
+    assert_ne!(out.traj_id, plan.traj_id);
+    assert_eq!(out.start_ns, 300_000_000 + 60_000_000 + 100_000_000);
+    let (a, b) = (plan.sample(plan.time_of(out.start_ns)), out.sample(0.0));
+    for j in 0..NJ {
+        assert!(
+            (a.p[j] - b.p[j]).abs() < 1e-9
+                && (a.v[j] - b.v[j]).abs() < 1e-9
+                && (a.a[j] - b.a[j]).abs() < 1e-9
+        );
+    }
+    let t0 = out.start_ns as f64 * 1e-9;
+    assert!(check_message(&mut rp.planner, &rp.world, &out, t0, t0 + 5.0).0);
+    assert_eq!(rp.stats.fallbacks.escape, 1);
+    // Without an escape found in the first cycle, the second has nothing to give way to: the
+    // plan is kept (the trap this guards against).
+    let (_, plan, _, d2, _, f2) = run(0);
+    assert!(!d2.publish, "{:?}", d2.status);
+    assert_eq!(d2.status.fallback, Fallback::Keep as u32, "{:?}", d2.status);
+    // The conflict is real: the plan is not clean against that forecast.
+    let mut probe = replanner();
+    let mut o = Box::new(<Trajectory as Zeroed>::zeroed());
+    probe.step(
+        400_000_000,
+        &START,
+        TrackerView { mode: ControllerMode::Idle, traj_id: 0 },
+        Some(&f2),
+        &GOAL,
+        &mut clock(),
+        &mut o,
+    );
+    assert!(!check_message(&mut probe.planner, &probe.world, &plan, 0.5, 5.4).0);
+}
