@@ -7,7 +7,7 @@ use dkrrt_sim::plant::{Plant, PlantConfig};
 fn cfg() -> PlantConfig {
     PlantConfig {
         dt: 1e-3,
-        substeps: 4,
+        substeps: 1,
         noise_q_std: 0.0,
         noise_qd_std: 0.0,
         delay_ticks: 0,
@@ -198,7 +198,11 @@ fn step_allocates_nothing() {
             p.step();
             let _ = p.measured();
         }
+        for _ in 0..100 {
+            p.step(); // braked (the watchdog): the substeps the brake needs
+        }
     });
+    assert!(p.brake_engaged());
     assert_eq!(s.allocs, 0, "{s:?}");
     let _ = JVec::zeros();
 }
@@ -246,4 +250,51 @@ fn a_non_finite_step_never_becomes_a_state() {
     assert!(p.stats.non_finite_steps > 0);
     assert!(p.brake_engaged(), "a blown-up step engages the brakes");
     assert!((q - q_before).amax() < 1e-3);
+}
+
+#[test]
+fn one_rk4_step_per_tick_matches_a_fine_integration_and_the_brake_stays_stable() {
+    // The free arm under a varying torque: 1 substep per 1 ms tick vs 16.
+    let run = |substeps: u32| {
+        let mut p = Plant::new(ArmModel::default_arm(), PlantConfig { substeps, ..cfg() }, &Q0);
+        for k in 0..2000u64 {
+            let s = (k as f64 * 0.003).sin();
+            p.offer_command(k, &[4.0 * s, -3.0 * s, 2.0, 0.5 * s, -0.5, 0.3 * s]);
+            p.step();
+        }
+        p.true_state()
+    };
+    let ((q1, v1), (q16, v16)) = (run(1), run(16));
+    assert!(
+        (q1 - q16).amax() < 1e-9 && (v1 - v16).amax() < 1e-8,
+        "{} {}",
+        (q1 - q16).amax(),
+        (v1 - v16).amax()
+    );
+    assert!(v16.amax() > 0.05, "the arm moved: {}", v16.amax());
+    // A viscous brake is stiff: at 1000 N·m·s/rad, one RK4 step per tick would diverge in the
+    // lightest mode (h·c/λ_min(M) well over 2.8). The plant subdivides while braked: the arm
+    // comes to rest as with 64 substeps, never faster than when the brake engaged.
+    let brake = |substeps: u32| {
+        let c = PlantConfig { substeps, brake_damping: 1000.0, ..cfg() };
+        let mut p = Plant::new(ArmModel::default_arm(), c, &Q0);
+        for k in 0..300 {
+            p.offer_command(k, &[0.0, 0.0, 0.0, 2.0, 2.0, 2.0]);
+            p.step();
+        }
+        for _ in 0..21 {
+            p.step(); // the last command holds until the watchdog's timeout
+        }
+        assert!(p.brake_engaged());
+        let v0 = p.max_speed();
+        assert!(v0 > 0.05, "{v0}");
+        for _ in 0..400 {
+            p.step();
+            assert!(p.max_speed() <= v0 + 1e-12, "{} > {v0}", p.max_speed());
+        }
+        assert!(p.max_speed() == 0.0 && p.stats.non_finite_steps == 0);
+        p.true_state().0
+    };
+    let (b1, b16) = (brake(1), brake(64));
+    assert!((b1 - b16).amax() < 1e-4, "{}", (b1 - b16).amax());
 }

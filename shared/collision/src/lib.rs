@@ -328,10 +328,28 @@ pub fn proximity(
     contacts: &mut [ContactPair],
 ) -> Proximity {
     let mut out = Proximity { min_distance: f64::INFINITY, link: 0, id: u32::MAX, n_contacts: 0 };
+    // Best first: the pair with the smallest lower bound is measured first, so that the
+    // bound skips nearly every other pair.
+    let mut seed = (f64::INFINITY, usize::MAX, usize::MAX);
     for (li, c) in arm.iter().enumerate() {
-        for o in obstacles {
+        for (oi, o) in obstacles.iter().enumerate() {
             let lower = o.lower_bound(c);
-            if lower > out.min_distance && lower > margin {
+            if lower < seed.0 {
+                seed = (lower, li, oi);
+            }
+        }
+    }
+    if seed.1 != usize::MAX {
+        let (li, oi) = (seed.1, seed.2);
+        out.min_distance = obstacles[oi].distance(&arm[li]);
+        out.link = li;
+        out.id = obstacles[oi].id;
+    }
+    for (li, c) in arm.iter().enumerate() {
+        for (oi, o) in obstacles.iter().enumerate() {
+            let lower = o.lower_bound(c);
+            let seeded = li == seed.1 && oi == seed.2;
+            if (lower > out.min_distance || seeded) && lower > margin {
                 continue;
             }
             let d = o.distance(c);

@@ -219,6 +219,14 @@ fn proximity_and_clearance_agree_with_all_pairs() {
         let pr = proximity(&caps, &obs, 0.0, &mut contacts);
         assert!((pr.min_distance - brute).abs() < 1e-12);
         assert_eq!(pr.any_contact(), brute <= 0.0);
+        // With a margin: every pair within it is a contact, each counted once (the best-first
+        // order measures the nearest pair before the others).
+        let margin = 0.3;
+        let within =
+            caps.iter().flat_map(|c| obs.iter().map(move |o| o.distance(c))).filter(|d| *d <= margin).count();
+        let pm = proximity(&caps, &obs, margin, &mut contacts);
+        assert_eq!(pm.n_contacts, within);
+        assert!((pm.min_distance - brute).abs() < 1e-12);
         let cl = clearance(&caps, &obs, 0.0, f64::INFINITY);
         if brute >= 0.0 {
             assert!((cl - brute).abs() < 1e-12);

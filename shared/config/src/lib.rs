@@ -1053,7 +1053,7 @@ mod tests {
 
     #[test]
     fn a_parse_error_names_the_key() {
-        let text = DEFAULT_SCENARIO.replace("substeps = 4", "substeps = \"four\"");
+        let text = DEFAULT_SCENARIO.replace("substeps = 1 ", "substeps = \"one\" ");
         let e = Scenario::from_toml_str(&text, "bad.toml").unwrap_err().to_string();
         assert!(e.contains("substeps") && e.contains("bad.toml"), "{e}");
 
