@@ -127,7 +127,8 @@ impl Checker {
             return -1.0;
         }
         self.poser.pose(q, &mut self.caps);
-        world.obstacles_at_masked(t, extra, mask, &mut self.obs);
+        let (centre, radius) = bounding_sphere(&self.caps);
+        world.obstacles_within(t, extra, mask, &centre, radius + self.cap, &mut self.obs);
         clearance(&self.caps, &self.obs, stop_below, self.cap)
     }
 
@@ -176,7 +177,7 @@ impl Checker {
             } else {
                 // At rest the arm's pose is already computed.
                 self.configs_checked += 1;
-                world.obstacles_at_masked(t, half, mask, &mut self.obs);
+                world.obstacles_within(t, half, mask, &centre, radius + self.cap, &mut self.obs);
                 clearance(&self.caps, &self.obs, 0.0, self.cap)
             };
             out.samples += 1;

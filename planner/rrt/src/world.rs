@@ -54,6 +54,8 @@ struct Track {
     speed: f64,
     /// σ growth rate after the last pose, m/s.
     sigma_rate: f64,
+    /// The poses' spacing when uniform (forecasts: their step), s; 0: not uniform.
+    grid_dt: f64,
 }
 
 /// Why a world could not be built from a problem.
@@ -90,6 +92,7 @@ impl WorldInTime {
                 poses: Vec::with_capacity(FORECAST_STEPS + 1),
                 speed: 0.0,
                 sigma_rate: 0.0,
+                grid_dt: 0.0,
             })
             .collect();
         WorldInTime { tracks, n: 0, margin: margin_m, t0: 0.0, horizon_end: 0.0 }
@@ -217,6 +220,22 @@ impl WorldInTime {
 
     /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
     pub fn obstacles_at_masked(&self, t: f64, extra: f64, mask: u64, out: &mut Vec<Obstacle>) {
+        self.obstacles_within(t, extra, mask, &[0.0; 3], f64::INFINITY, out);
+    }
+
+    /// [`WorldInTime::obstacles_at_masked`] without the tracks whose inflated shape lies
+    /// farther than `reach` from `centre` at `t` (their attitude is never interpolated). With
+    /// `centre`, `reach` = the arm's bounding sphere grown by the checker's cap, what is left
+    /// out could not lower a clearance capped there.
+    pub fn obstacles_within(
+        &self,
+        t: f64,
+        extra: f64,
+        mask: u64,
+        centre: &[f64; 3],
+        reach: f64,
+        out: &mut Vec<Obstacle>,
+    ) {
         out.clear();
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             if mask >> i & 1 == 0 {
@@ -224,6 +243,16 @@ impl WorldInTime {
             }
             let s = state_at(tr, t);
             let base = self.margin + extra;
+            if reach.is_finite() {
+                let d = ((s.p[0] - centre[0]).powi(2)
+                    + (s.p[1] - centre[1]).powi(2)
+                    + (s.p[2] - centre[2]).powi(2))
+                .sqrt();
+                // The shape (or the bounding sphere), inflated, lies within this of `s.p`.
+                if d - (tr.radius + s.sigma.max(s.sigma_pos) + base) >= reach {
+                    continue;
+                }
+            }
             // The shape inflated by its surface bound, or the bounding sphere by the position
             // bound when the attitude is too uncertain for the shape to be the tighter one (the
             // attitude is interpolated only when the shape needs it).
@@ -260,6 +289,13 @@ impl WorldInTime {
 fn finish(t: &mut Track) {
     let n = t.poses.len();
     let r = t.radius;
+    t.grid_dt = 0.0;
+    if n >= 2 {
+        let dt = t.poses[1].t - t.poses[0].t;
+        if t.poses.windows(2).all(|w| ((w[1].t - w[0].t) - dt).abs() <= 1e-9 * dt) {
+            t.grid_dt = dt;
+        }
+    }
     let mut speed: f64 = 0.0;
     for w in t.poses.windows(2) {
         let dt = w[1].t - w[0].t;
@@ -329,7 +365,22 @@ fn state_at(tr: &Track, t: f64) -> State {
         };
     }
     // Interval [k, k+1] holding t (clamped to the first / last).
-    let k = if t <= ps[0].t { 0 } else { ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2) };
+    let k = if t <= ps[0].t {
+        0
+    } else if tr.grid_dt > 0.0 {
+        // Uniform steps: the interval straight from the time, then made exact (the last pose
+        // at or before `t`, as the search below finds it).
+        let mut k = (((t - ps[0].t) / tr.grid_dt) as usize).min(n - 2);
+        while k + 2 < n && ps[k + 1].t <= t {
+            k += 1;
+        }
+        while k > 0 && ps[k].t > t {
+            k -= 1;
+        }
+        k
+    } else {
+        ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2)
+    };
     let (a, b) = (ps[k], ps[k + 1]);
     let f = (t - a.t) / (b.t - a.t);
     let p = [a.p[0] + f * (b.p[0] - a.p[0]), a.p[1] + f * (b.p[1] - a.p[1]), a.p[2] + f * (b.p[2] - a.p[2])];

@@ -305,3 +305,71 @@ fn the_broad_phase_never_sets_aside_a_track_that_comes_near() {
     }
     assert!(kept_near > 100, "near cases exercised: {kept_near}");
 }
+
+#[test]
+fn the_checker_leaves_out_only_what_cannot_lower_its_capped_clearance() {
+    // Random moving, turning shapes (forecast-like: 0.1 s steps), random arm configurations
+    // and times: the checker's clearance (tracks beyond the arm's sphere + cap left out, the
+    // step found straight from the time) equals the capped clearance against every obstacle,
+    // and a track on a uniform grid is posed as one whose grid is broken after the window.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(23);
+    let shapes = [
+        DebrisShape::sphere(0.3),
+        DebrisShape::capsule(0.6, 0.05),
+        DebrisShape::cuboid([0.4, 0.3, 0.02], [0.1, 0.0, 0.0]),
+    ];
+    let model = ArmModel::default_arm();
+    let mut checker = Checker::new(model.clone(), &limits().v_max, 0.03);
+    let poser = dkrrt_collision::ArmPoser::new(model);
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    let mut obs = Vec::with_capacity(32);
+    let mut near = 0;
+    for _ in 0..100 {
+        let mut w = WorldInTime::new(0.05);
+        let mut broken = WorldInTime::new(0.05);
+        for id in 0..12u32 {
+            let p0: [f64; 3] = std::array::from_fn(|_| rng.random_range(-2.5..2.5));
+            let v: [f64; 3] = std::array::from_fn(|_| rng.random_range(-0.6..0.6));
+            let wz = rng.random_range(-2.0..2.0);
+            let mut poses: Vec<TimedPose> = (0..=40)
+                .map(|k| {
+                    let t = 0.1 * (k + 1) as f64;
+                    let a = 0.5 * wz * t;
+                    TimedPose {
+                        t,
+                        p: [p0[0] + v[0] * t, p0[1] + v[1] * t, p0[2] + v[2] * t],
+                        q: [a.cos(), 0.0, a.sin() * 0.6, a.sin() * 0.8],
+                        sigma: 0.01 + 0.05 * t,
+                        sigma_pos: 0.01 + 0.02 * t,
+                    }
+                })
+                .collect();
+            w.push_track(id, shapes[id as usize % 3], &poses, After::Extrapolate).unwrap();
+            poses[40].t += 1e-4;
+            broken.push_track(id, shapes[id as usize % 3], &poses, After::Extrapolate).unwrap();
+        }
+        for _ in 0..20 {
+            let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+            // On grid points too (where the step boundary is decided).
+            let t = if rng.random::<bool>() {
+                0.1 * rng.random_range(1..40) as f64
+            } else {
+                rng.random_range(0.0..4.5)
+            };
+            let extra = 0.015;
+            let got = checker.clearance_at(&w, &q, t, extra, f64::NEG_INFINITY);
+            poser.pose(&q, &mut caps);
+            w.obstacles_at(t, extra, &mut obs);
+            let want = dkrrt_collision::clearance(&caps, &obs, f64::NEG_INFINITY, checker.cap);
+            assert!(got == want || (got - want).abs() < 1e-12, "{got} vs {want} at t = {t}");
+            near += (want < checker.cap) as usize;
+            if t < 3.95 {
+                for i in 0..w.len() {
+                    assert_eq!(w.pose_at(i, t), broken.pose_at(i, t), "track {i} at {t}");
+                }
+            }
+        }
+    }
+    assert!(near > 50, "cases exercised: {near} near");
+}
