@@ -42,6 +42,14 @@ fn forecast(t0_ns: u64, p: [f64; 3], r: f64) -> Box<DebrisForecast> {
     f
 }
 
+/// The first cycle, at plant time 0 with the debris far away: the free plan from START to GOAL.
+fn first_free_plan(rp: &mut Replanner, clk: &mut impl FnMut() -> u64, out: &mut Trajectory) -> Trajectory {
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
+    assert!(rp.step(0, &START, idle, Some(&far), &GOAL, clk, out).publish);
+    *out
+}
+
 fn clock() -> impl FnMut() -> u64 {
     let mut t = 0u64;
     move || {
@@ -316,10 +324,8 @@ fn a_kept_clean_plan_gives_way_to_an_earlier_arrival_as_the_forecast_clears() {
     // Where the unobstructed motion puts the end effector 70 % of the way.
     let mut probe = replanner();
     let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
-    let mut clk = clock();
+    first_free_plan(&mut probe, &mut clock(), &mut out);
     let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
-    let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
-    assert!(probe.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out).publish);
     let free_arrival = out.start_ns as f64 * 1e-9 + out.duration_s;
     let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
     let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
@@ -402,10 +408,7 @@ fn a_plan_kept_with_a_far_conflict_gives_way_to_its_known_escape_when_none_is_fo
         let mut rp = replanner();
         let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
         let mut clk = clock();
-        let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
-        let far = forecast(0, [50.0, 0.0, 0.0], 0.2);
-        assert!(rp.step(0, &START, idle, Some(&far), &GOAL, &mut clk, &mut out).publish);
-        let plan = *out;
+        let plan = first_free_plan(&mut rp, &mut clk, &mut out);
         let track = TrackerView { mode: ControllerMode::Track, traj_id: plan.traj_id };
         let now1 = 300_000_000u64;
         let t_arr = now1 as f64 * 1e-9 + 3.3;
