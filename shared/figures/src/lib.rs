@@ -531,3 +531,72 @@ fn curves_on<DB: DrawingBackend>(
     }
     Ok(())
 }
+
+/// A depth camera frame as a PNG (`path`): depth (near bright, far dark, no return black; the
+/// shades span the frame's own nearest to farthest return) beside the instances (one colour
+/// per object, the arm white), each pixel drawn 4 times larger. `depth` and `instance` are
+/// row-major `width × height`; `arm` is the arm's instance value.
+#[allow(clippy::too_many_arguments)]
+pub fn depth_frame_png(
+    path: &Path,
+    title: &str,
+    width: usize,
+    height: usize,
+    depth: &[f32],
+    instance: &[u8],
+    arm: u8,
+) -> Result<PathBuf, String> {
+    fonts();
+    let scale = 4usize;
+    let (pw, ph) = ((width * scale) as u32, (height * scale) as u32);
+    let (gap, top) = (20u32, 60u32);
+    let root = BitMapBackend::new(path, (2 * pw + 3 * gap, ph + top + 2 * gap)).into_drawing_area();
+    let e = |x: DrawingAreaErrorKind<_>| x.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    root.titled(title, (FONT, 22)).map_err(e)?;
+    let style = TextStyle::from((FONT, 16).into_font());
+    let label_y = (top - 24) as i32;
+    root.draw_text("depth (bright: near; black: no return)", &style, (gap as i32, label_y)).map_err(e)?;
+    root.draw_text("instances (white: the arm)", &style, ((2 * gap + pw) as i32, label_y)).map_err(e)?;
+    let valid = depth[..width * height].iter().filter(|&&d| d > 0.0).map(|&d| d as f64);
+    let (near, far) = valid.fold((f64::INFINITY, 0.0f64), |(a, b), d| (a.min(d), b.max(d)));
+    let span = (far - near).max(1e-6);
+    root.draw_text(
+        &format!("nearest {near:.2} m, farthest {far:.2} m"),
+        &style,
+        (gap as i32, (top + ph + 2) as i32),
+    )
+    .map_err(e)?;
+    for v in 0..height {
+        for u in 0..width {
+            let k = v * width + u;
+            let d = depth[k] as f64;
+            let c = if d <= 0.0 {
+                RGBColor(0, 0, 0)
+            } else {
+                let s = 1.0 - ((d - near) / span).clamp(0.0, 1.0);
+                let g = (50.0 + 205.0 * s) as u8;
+                RGBColor(g, g, (g as f64 * 0.85) as u8)
+            };
+            let inst = instance[k];
+            let ci = if inst == 0 {
+                RGBColor(20, 20, 20)
+            } else if inst == arm {
+                RGBColor(255, 255, 255)
+            } else {
+                let p = PALETTE[(inst as usize - 1) % 7];
+                // Vary the shade per id beyond the palette's length.
+                let f = 1.0 - 0.3 * (((inst as usize - 1) / 7) % 3) as f64;
+                RGBColor((p.0 as f64 * f) as u8, (p.1 as f64 * f) as u8, (p.2 as f64 * f) as u8)
+            };
+            for (panel, col) in [(0u32, c), (1, ci)] {
+                let x0 = (gap + panel * (pw + gap)) as i32 + (u * scale) as i32;
+                let y0 = top as i32 + (v * scale) as i32;
+                root.draw(&Rectangle::new([(x0, y0), (x0 + scale as i32, y0 + scale as i32)], col.filled()))
+                    .map_err(e)?;
+            }
+        }
+    }
+    root.present().map_err(e)?;
+    Ok(path.to_path_buf())
+}
