@@ -253,6 +253,17 @@ impl Camera {
         self.f
     }
 
+    /// Principal point (image coordinates of the optical axis; pixel (u, v)'s centre is at
+    /// (u + 0.5, v + 0.5)), pixels.
+    pub fn principal_point(&self) -> (f64, f64) {
+        (self.cx, self.cy)
+    }
+
+    /// Camera-to-frame rotation, rows.
+    pub fn rotation(&self) -> [[f64; 3]; 3] {
+        self.rot
+    }
+
     /// The unit ray of pixel (`u`, `v`) in the frame.
     pub fn ray_dir(&self, u: usize, v: usize) -> [f64; 3] {
         self.dirs[v * self.cfg.width as usize + u]
