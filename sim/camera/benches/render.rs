@@ -2,21 +2,14 @@
 //! (target: ≤ 5 ms per frame; the camera runs at 10–30 Hz).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use dkrrt_camera::scene::objects_ahead;
+use dkrrt_camera::scene::{arm_ahead, objects_ahead, targets};
 use dkrrt_camera::*;
-use dkrrt_collision::{ArmPoser, PosedCapsule};
-use dkrrt_model::{ArmModel, NJ};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
     let objects = objects_ahead(32, 5);
-    let targets: Vec<Target> = objects
-        .iter()
-        .map(|(id, s, p, q, b)| Target { id: *id, shape: s.as_ref(), p: *p, q: *q, bound: *b })
-        .collect();
-    let poser = ArmPoser::with_offset(ArmModel::default_arm(), [2.0, 0.0, -0.8]);
-    let mut arm = [PosedCapsule::default(); NJ];
-    poser.pose(&[0.3, -0.5, 1.0, 0.0, 0.5, 0.0], &mut arm);
+    let targets = targets(&objects);
+    let arm = arm_ahead();
     let mut cam = Camera::new(CameraConfig::default()).unwrap();
     let mut frame = DepthFrame::default();
     let mut g = c.benchmark_group("camera");

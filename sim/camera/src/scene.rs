@@ -1,10 +1,14 @@
 //! A test and benchmark scene: `n` objects of every kind in front of the default camera, and
 //! the arm's capsules below them.
 
+use dkrrt_collision::{ArmPoser, PosedCapsule};
+use dkrrt_model::{ArmModel, NJ};
 use parry3d_f64::math::Vector as PVec;
 use parry3d_f64::shape::SharedShape;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+
+use crate::Target;
 
 /// One object: id, exact shape, position, attitude (w, x, y, z), bounding radius.
 pub type Object = (u32, SharedShape, [f64; 3], [f64; 4], f64);
@@ -42,4 +46,21 @@ pub fn objects_ahead(n: usize, seed: u64) -> Vec<Object> {
             (i as u32 + 1, shape, p, q, bound)
         })
         .collect()
+}
+
+/// The objects as render targets.
+pub fn targets(objects: &[Object]) -> Vec<Target<'_>> {
+    objects
+        .iter()
+        .map(|(id, s, p, q, b)| Target { id: *id, shape: s.as_ref(), p: *p, q: *q, bound: *b })
+        .collect()
+}
+
+/// The default arm reaching up and forward, its base 2 m ahead of the default camera and
+/// 0.8 m below its axis: in front of most objects of [`objects_ahead`].
+pub fn arm_ahead() -> [PosedCapsule; NJ] {
+    let poser = ArmPoser::with_offset(ArmModel::default_arm(), [2.0, 0.0, -0.8]);
+    let mut arm = [PosedCapsule::default(); NJ];
+    poser.pose(&[0.3, -0.5, 1.0, 0.0, 0.5, 0.0], &mut arm);
+    arm
 }

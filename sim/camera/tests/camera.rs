@@ -2,10 +2,9 @@
 //! against casting every ray at everything, the sensor model, configuration errors, and an
 //! allocation-free render.
 
-use dkrrt_camera::scene::objects_ahead;
+use dkrrt_camera::scene::{arm_ahead, objects_ahead, targets};
 use dkrrt_camera::*;
-use dkrrt_collision::{ArmPoser, PosedCapsule};
-use dkrrt_model::{ArmModel, NJ};
+use dkrrt_collision::PosedCapsule;
 use dkrrt_rt::alloc_count::{count, CountingAlloc};
 use parry3d_f64::glamx::DQuat;
 use parry3d_f64::math::{Pose, Vector as PVec};
@@ -112,13 +111,8 @@ fn the_arm_occludes_what_lies_behind_it() {
 #[test]
 fn culling_misses_nothing_that_casting_every_ray_at_everything_finds() {
     let objects = objects_ahead(32, 11);
-    let targets: Vec<Target> = objects
-        .iter()
-        .map(|(id, s, p, q, b)| Target { id: *id, shape: s.as_ref(), p: *p, q: *q, bound: *b })
-        .collect();
-    let poser = ArmPoser::with_offset(ArmModel::default_arm(), [2.0, 0.0, -0.8]);
-    let mut arm = [PosedCapsule::default(); NJ];
-    poser.pose(&[0.3, -0.5, 1.0, 0.0, 0.5, 0.0], &mut arm);
+    let targets = targets(&objects);
+    let arm = arm_ahead();
     let mut cam = Camera::new(exact()).unwrap();
     let mut frame = DepthFrame::default();
     cam.render(&targets, &arm, &mut frame);
@@ -241,13 +235,8 @@ fn a_bad_configuration_is_refused_naming_the_field() {
 #[test]
 fn rendering_allocates_nothing() {
     let objects = objects_ahead(32, 3);
-    let targets: Vec<Target> = objects
-        .iter()
-        .map(|(id, s, p, q, b)| Target { id: *id, shape: s.as_ref(), p: *p, q: *q, bound: *b })
-        .collect();
-    let poser = ArmPoser::with_offset(ArmModel::default_arm(), [2.0, 0.0, -0.8]);
-    let mut arm = [PosedCapsule::default(); NJ];
-    poser.pose(&[0.3, -0.5, 1.0, 0.0, 0.5, 0.0], &mut arm);
+    let targets = targets(&objects);
+    let arm = arm_ahead();
     let mut cam = Camera::new(CameraConfig::default()).unwrap();
     let mut frame = DepthFrame::default();
     cam.render(&targets, &arm, &mut frame);
