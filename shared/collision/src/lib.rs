@@ -329,11 +329,17 @@ pub fn proximity(
 ) -> Proximity {
     let mut out = Proximity { min_distance: f64::INFINITY, link: 0, id: u32::MAX, n_contacts: 0 };
     // Best first: the pair with the smallest lower bound is measured first, so that the
-    // bound skips nearly every other pair.
+    // bound skips nearly every other pair (the bounds are kept for the second pass).
+    const MAX_PAIRS: usize = 6 * 64;
+    let mut bounds = [0.0f64; MAX_PAIRS];
+    let cached = arm.len() * obstacles.len() <= MAX_PAIRS;
     let mut seed = (f64::INFINITY, usize::MAX, usize::MAX);
     for (li, c) in arm.iter().enumerate() {
         for (oi, o) in obstacles.iter().enumerate() {
             let lower = o.lower_bound(c);
+            if cached {
+                bounds[li * obstacles.len() + oi] = lower;
+            }
             if lower < seed.0 {
                 seed = (lower, li, oi);
             }
@@ -347,7 +353,7 @@ pub fn proximity(
     }
     for (li, c) in arm.iter().enumerate() {
         for (oi, o) in obstacles.iter().enumerate() {
-            let lower = o.lower_bound(c);
+            let lower = if cached { bounds[li * obstacles.len() + oi] } else { o.lower_bound(c) };
             let seeded = li == seed.1 && oi == seed.2;
             if (lower > out.min_distance || seeded) && lower > margin {
                 continue;
