@@ -3,8 +3,12 @@
 
 use dkrrt_config::{Scenario, DEFAULT_SCENARIO};
 
+/// Writes `text` as `name` in a directory of its own (the tests run in parallel threads: a
+/// shared path let one test read another's half-written file).
 fn write(name: &str, text: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("dkrrt-cfg-{}", std::process::id()));
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("dkrrt-cfg-{}-{k}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
