@@ -708,6 +708,13 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "first_contact": sim.pointer("/debris/first_contact"),
             "observation_frames": sim.pointer("/debris/observation_frames"),
         }) } else { Value::Null },
+        "camera": if sc.camera.enabled && sc.has_debris() { json!({
+            "rate_hz": sc.camera.rate_hz,
+            "frames": sim.pointer("/camera/stats/delivered"),
+            "captured": sim.pointer("/camera/stats/captured"),
+            "overrun": sim.pointer("/camera/stats/overrun"),
+            "render_us": pick(sim.pointer("/camera/render_us").unwrap_or(&Value::Null), &["p50", "p99", "max"]),
+        }) } else { Value::Null },
         "predictor": if sc.has_debris() { json!({
             // The scenario's method, also when the process left no statistics.
             "method": pred.get("method").cloned().unwrap_or_else(|| json!(sc.predictor_method())),
@@ -813,6 +820,16 @@ pub fn summary(r: &Value) -> String {
         e("/tracking_error_rad/max"),
         e("/final_error_rad")
     );
+    if !r["camera"].is_null() {
+        s += &format!(
+            "  camera               frames {} at {} Hz on dkrrt/depth_image   render us p50 {} p99 {} max {}\n",
+            r["camera"]["frames"],
+            r["camera"]["rate_hz"],
+            f("/camera/render_us/p50"),
+            f("/camera/render_us/p99"),
+            f("/camera/render_us/max")
+        );
+    }
     if !r["debris"].is_null() {
         s += &format!(
             "  debris ({})         min distance {} m   collision {}\n",

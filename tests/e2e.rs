@@ -716,3 +716,40 @@ fn a_goal_message_retargets_a_run_without_debris() {
     assert_at_rest_within_limits(&r);
     let _ = std::fs::remove_file(rp);
 }
+
+/// `[camera] enabled`: the sim renders the depth camera on the plant clock and publishes its
+/// frames (`dkrrt/depth_image`); the run stays ok and the report carries the camera figures.
+#[test]
+fn the_depth_camera_publishes_frames_on_the_plant_clock() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/default.toml"))
+            .unwrap()
+            .replace("enabled = false", "enabled = true")
+            .replace("rate_hz = 20.0 ", "rate_hz = 10.0 ");
+    let sc = std::env::temp_dir().join(format!("dkrrt-e2e-camera-{}.toml", std::process::id()));
+    std::fs::write(&sc, text).unwrap();
+    let rp = report_path("camera");
+    let out = Command::new(exe())
+        .args(["launch", "--mode", "lockstep", "--scenario"])
+        .arg(&sc)
+        .arg("--report")
+        .arg(&rp)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_file(&sc);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let r = read_report(&rp);
+    assert_eq!(r["ok"], true, "{:#}", r["checks"]);
+    let dur = num(&r, "/duration_s");
+    // A capture every 0.1 s of plant time from t = 0; the last 30 ms of captures (the
+    // latency) are still in flight at the end.
+    let captured = num(&r, "/camera/captured");
+    assert_eq!(captured, (dur * 10.0 + 1e-6).floor() + 1.0, "{:#}", r["camera"]);
+    let frames = num(&r, "/camera/frames");
+    assert!(frames == captured || frames == captured - 1.0, "{:#}", r["camera"]);
+    assert_eq!(num(&r, "/camera/overrun"), 0.0);
+    assert!(num(&r, "/camera/render_us/max") > 0.0);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("camera") && text.contains("dkrrt/depth_image"), "{text}");
+}

@@ -38,6 +38,8 @@ pub struct SimReport {
     /// The controlled stop at the end of the run, if there was one.
     pub stop: Option<StopReport>,
     pub rt: RtReport,
+    /// The depth camera's figures (`null` when off).
+    pub camera: Option<crate::camera_proc::CameraReport>,
 }
 
 /// What the simulator waits for at tick 0 in lockstep (see [`run`]).
@@ -120,6 +122,7 @@ pub fn run(
         None => None,
     };
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
+    let mut camera = crate::camera_proc::SimCamera::new(run, sc)?;
     let mut plan_gate = if gate.planner && sc.run.mode == Mode::Lockstep {
         Some(bus.subscriber::<PlanStatus>().map_err(|e| e.to_string())?)
     } else {
@@ -321,6 +324,10 @@ pub fn run(
                 None => Ok(()),
             })
             .map_err(|e| e.to_string())?;
+        if let (Some(cam), Some(d)) = (camera.as_mut(), core.debris.as_mut()) {
+            let q = core.plant.true_state().0.into();
+            cam.tick(d, &q, k * period_ns)?;
+        }
         if n_trace > 0 && k.is_multiple_of(TRACE_TICKS) && tr.distance.len() < tr.distance.capacity() {
             if let Some(d) = core.debris.as_ref() {
                 let t = k as f64 * period_ns as f64 * 1e-9;
@@ -382,6 +389,7 @@ pub fn run(
         stopped_by_signal: policy.stopped_by_signal,
         stop: policy.report(),
         rt,
+        camera: camera.map(|c| c.finish()).transpose()?,
     };
     dkrrt_rt::write_stats("sim", stats_path, &report)?;
     if let Some(p) = trace {

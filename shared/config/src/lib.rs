@@ -73,6 +73,10 @@ pub struct Scenario {
     /// `dkrrt arm-emulator`): the emulated network's impairments and the arm's abort limit.
     #[serde(default)]
     pub udp: UdpCfg,
+    /// The depth camera on the servicer (`dkrrt/depth_image`): pose in the arm's base frame,
+    /// image, rate, latency, noise. Off unless `enabled`.
+    #[serde(default)]
+    pub camera: dkrrt_camera::CameraConfig,
     /// A threat episode (generated start, goal and debris aimed at the straight motion)
     /// replacing `sim.initial_q`, `goal.q` and the debris scene; resolved by the consumer
     /// (`dkrrt_episodes::resolve`) into the fields below.
@@ -963,6 +967,7 @@ impl Scenario {
         if !(1..=1000).contains(&u.abort_after) {
             return Err(c.fail("udp.abort_after", u.abort_after, "must be within [1, 1000] ticks"));
         }
+        self.camera.validate().map_err(|e| c.fail(format!("camera.{}", e.field), e.value, e.reason))?;
         let k = &self.checks;
         c.positive("checks.goal_tolerance_rad", k.goal_tolerance_rad)?;
         c.at_most("checks.goal_tolerance_rad", k.goal_tolerance_rad, 0.5, "rad")?;
@@ -1067,6 +1072,37 @@ mod tests {
     }
 
     #[test]
+    fn the_camera_table_is_read_and_checked_naming_the_field() {
+        let ok = Scenario::from_toml_str(DEFAULT_SCENARIO, "d.toml").unwrap();
+        assert_eq!(ok.camera, dkrrt_camera::CameraConfig::default(), "default.toml states the defaults");
+        let on = DEFAULT_SCENARIO
+            .replace("enabled = false", "enabled = true")
+            .replace("rate_hz = 20.0 ", "rate_hz = 15.0 ");
+        let s = Scenario::from_toml_str(&on, "on.toml").unwrap();
+        assert!(s.camera.enabled && s.camera.rate_hz == 15.0);
+        s.validate(&arm()).unwrap();
+        for (from, to, field) in [
+            ("rate_hz = 20.0 ", "rate_hz = 0.0 ", "camera.rate_hz"),
+            ("width = 128 ", "width = 200 ", "camera.width"),
+            ("dropout = 0.01 ", "dropout = 2.0 ", "camera.dropout"),
+            (
+                "orientation = [0.5, -0.5, 0.5, -0.5]",
+                "orientation = [1.0, 1.0, 0.0, 0.0]",
+                "camera.orientation",
+            ),
+        ] {
+            let text = DEFAULT_SCENARIO.replace(from, to);
+            assert_ne!(text, DEFAULT_SCENARIO, "{from}");
+            let e =
+                Scenario::from_toml_str(&text, "bad.toml").unwrap().validate(&arm()).unwrap_err().to_string();
+            assert!(e.contains(field), "{field}: {e}");
+        }
+        let typo = DEFAULT_SCENARIO.replace("noise_base_m = 0.002", "noise_base = 0.002");
+        let e = Scenario::from_toml_str(&typo, "typo.toml").unwrap_err().to_string();
+        assert!(e.contains("noise_base") && e.contains("typo.toml"), "{e}");
+    }
+
+    #[test]
     fn the_udp_link_and_the_command_kind_are_checked_naming_the_field() {
         let ok = Scenario::from_toml_str(DEFAULT_SCENARIO, "d.toml").unwrap();
         assert_eq!((ok.udp.abort_after, ok.tracker.command.as_str()), (20, "torque"));
@@ -1088,6 +1124,7 @@ mod tests {
         let i = DEFAULT_SCENARIO.find("\n[udp]").unwrap();
         let s = Scenario::from_toml_str(&DEFAULT_SCENARIO[..i], "old.toml").unwrap();
         assert_eq!(s.udp, UdpCfg::default());
+        assert_eq!(s.camera, dkrrt_camera::CameraConfig::default());
         let servo = DEFAULT_SCENARIO.replace("command = \"torque\"", "command = \"servo\"");
         assert_eq!(Scenario::from_toml_str(&servo, "s.toml").unwrap().tracker.command, "servo");
     }

@@ -77,6 +77,7 @@ topic!(DebrisObservation, "dkrrt/debris_observation", OBSERVATION_BUFFER);
 topic!(DebrisForecast, "dkrrt/debris_forecast");
 topic!(PlanStatus, "dkrrt/plan_status");
 topic!(PredictorProgress, "dkrrt/predictor_progress");
+topic!(DepthImage, "dkrrt/depth_image");
 
 /// QoS shared by all services (open_or_create needs the same values everywhere).
 pub const MAX_PUBLISHERS: usize = 8;

@@ -502,6 +502,58 @@ pub struct PredictorProgress {
     pub forecasts: u64,
 }
 
+/// Width of the largest depth image ([`DepthImage`]), pixels.
+pub const DEPTH_WIDTH: usize = 128;
+/// Height of the largest depth image, pixels.
+pub const DEPTH_HEIGHT: usize = 96;
+/// Pixels of the largest depth image.
+pub const DEPTH_PIXELS: usize = DEPTH_WIDTH * DEPTH_HEIGHT;
+/// Objects one depth image can label (instances `1..=DEPTH_MAX_INSTANCES`).
+pub const DEPTH_MAX_INSTANCES: usize = 254;
+/// Instance of a pixel with no return.
+pub const DEPTH_BACKGROUND: u8 = 0;
+/// Instance of the arm's own pixels.
+pub const DEPTH_ARM: u8 = 255;
+/// Farthest depth a `u16` in millimetres holds, m.
+pub const DEPTH_MAX_M: f64 = 65.535;
+
+/// One depth camera frame with its segmentation: what a depth sensor and a segmentation
+/// front end deliver (`dkrrt/depth_image`). Pinhole camera, pixel (`u`, `v`) (row-major,
+/// index `v · width + u`, centre at image coordinates (`u + 0.5`, `v + 0.5`)) looks along
+/// `((u + 0.5 − cx) / focal_px, (v + 0.5 − cy) / focal_px, 1)` in camera axes (x right,
+/// y down, z the optical axis).
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("dkrrt::DepthImage/1")]
+pub struct DepthImage {
+    /// `stamp_ns`: the capture time (plant clock).
+    pub header: Header,
+    /// Image size, pixels (≤ [`DEPTH_WIDTH`] × [`DEPTH_HEIGHT`]; the first `width · height`
+    /// entries of `depth_mm` and `instance` are the image).
+    pub width: u32,
+    pub height: u32,
+    /// Focal length and principal point, pixels.
+    pub focal_px: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// Optical centre in the arm's base frame, m.
+    pub position_m: [f64; 3],
+    /// Camera-to-base rotation (w, x, y, z), unit norm.
+    pub orientation: [f64; 4],
+    /// The sensor's range: returns outside it are none, m.
+    pub range_min_m: f64,
+    pub range_max_m: f64,
+    /// Instances labelled in this frame (≤ [`DEPTH_MAX_INSTANCES`]).
+    pub n_instances: u32,
+    pub _reserved: u32,
+    /// Debris id of instance `k` at index `k − 1`.
+    pub ids: [u32; DEPTH_MAX_INSTANCES],
+    /// Depth along the optical axis, mm; 0: no return (none, out of range, or dropped).
+    pub depth_mm: [u16; DEPTH_PIXELS],
+    /// Instance per pixel: [`DEPTH_BACKGROUND`], [`DEPTH_ARM`], or `1..=n_instances`.
+    pub instance: [u8; DEPTH_PIXELS],
+}
+
 /// All-zero value of a payload (every payload is plain numbers, so all-zero
 /// bytes are a valid value). Large payloads are built in place from this.
 pub trait Zeroed: Sized + Copy {
@@ -520,6 +572,7 @@ impl Zeroed for DebrisObservation {}
 impl Zeroed for DebrisForecast {}
 impl Zeroed for PlanStatus {}
 impl Zeroed for PredictorProgress {}
+impl Zeroed for DepthImage {}
 
 // Compile-time layout checks: a failing assert here means the wire layout changed.
 const _: () = {
@@ -539,6 +592,10 @@ const _: () = {
     assert!(size_of::<DebrisForecast>() == 32 + 24 + (72 + 72 * FORECAST_STEPS) * MAX_DEBRIS);
     assert!(size_of::<PlanStatus>() == 32 + 8 * 5 + 4 * 4);
     assert!(size_of::<PredictorProgress>() == 32 + 3 * 8);
+    assert!(
+        size_of::<DepthImage>()
+            == 32 + 8 + 3 * 8 + 24 + 32 + 16 + 8 + 4 * DEPTH_MAX_INSTANCES + 3 * DEPTH_PIXELS
+    );
     assert!(align_of::<RobotState>() == 8 && align_of::<TorqueCommand>() == 8);
     assert!(align_of::<Trajectory>() == 8 && align_of::<DebrisForecast>() == 8);
 };

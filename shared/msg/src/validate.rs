@@ -363,6 +363,50 @@ impl Validate for DebrisForecast {
     }
 }
 
+impl Validate for DepthImage {
+    /// The image's geometry, the camera's pose and range, and every pixel's instance; a
+    /// depth (mm) needs no check beyond its type (0 = no return).
+    fn validate(&self, lim: &ContractLimits) -> Result<(), ValidationError> {
+        let count = |field, value: usize, max: usize| {
+            if value == 0 || value > max {
+                Err(ValidationError::Count { field, value: value as u64, max: max as u64 })
+            } else {
+                Ok(())
+            }
+        };
+        count("width", self.width as usize, DEPTH_WIDTH)?;
+        count("height", self.height as usize, DEPTH_HEIGHT)?;
+        let (w, h) = (self.width as f64, self.height as f64);
+        scalar("focal_px", self.focal_px, 1e-3, 1e6)?;
+        scalar("cx", self.cx, 0.0, w)?;
+        scalar("cy", self.cy, 0.0, h)?;
+        let r = lim.debris_range_m;
+        range("position_m", &self.position_m, &[-r; 3], &[r; 3])?;
+        unit_quat("orientation", 0, &self.orientation)?;
+        scalar("range_min_m", self.range_min_m, 0.0, DEPTH_MAX_M)?;
+        scalar("range_max_m", self.range_max_m, self.range_min_m, DEPTH_MAX_M)?;
+        let n = self.n_instances as usize;
+        if n > DEPTH_MAX_INSTANCES {
+            return Err(ValidationError::Count {
+                field: "n_instances",
+                value: n as u64,
+                max: DEPTH_MAX_INSTANCES as u64,
+            });
+        }
+        let pixels = self.width as usize * self.height as usize;
+        if let Some(index) = self.instance[..pixels].iter().position(|&k| k != DEPTH_ARM && k as usize > n) {
+            return Err(ValidationError::OutOfRange {
+                field: "instance",
+                index,
+                value: self.instance[index] as f64,
+                min: 0.0,
+                max: n as f64,
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Validate for PlanStatus {
     fn validate(&self, _lim: &ContractLimits) -> Result<(), ValidationError> {
         if Fallback::from_u32(self.fallback).is_none() {

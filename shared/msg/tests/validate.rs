@@ -141,3 +141,38 @@ fn heartbeat_checks_enums() {
     h.state = 17;
     assert!(h.validate(&lim()).is_err());
 }
+
+/// A depth image is refused naming the field: its size, intrinsics, pose, range, and any
+/// pixel labelled with an instance the frame does not have.
+#[test]
+fn a_bad_depth_image_is_refused_naming_the_field() {
+    let lim = ContractLimits { debris_range_m: 100.0, ..ContractLimits::symmetric(3.0, 3.0, 100.0) };
+    let mut ok = Box::new(<DepthImage as Zeroed>::zeroed());
+    (ok.width, ok.height, ok.focal_px, ok.cx, ok.cy) = (128, 96, 83.1, 64.0, 48.0);
+    ok.orientation = [0.5, -0.5, 0.5, -0.5];
+    (ok.range_min_m, ok.range_max_m, ok.n_instances) = (0.2, 15.0, 2);
+    ok.instance[5] = 2;
+    ok.instance[6] = DEPTH_ARM;
+    ok.depth_mm[5] = 4000;
+    ok.validate(&lim).unwrap();
+    let cases: [(&str, fn(&mut DepthImage)); 8] = [
+        ("width", |m| m.width = 129),
+        ("height", |m| m.height = 0),
+        ("focal_px", |m| m.focal_px = f64::NAN),
+        ("cx", |m| m.cx = 200.0),
+        ("position_m", |m| m.position_m[2] = f64::INFINITY),
+        ("orientation", |m| m.orientation = [1.0, 1.0, 0.0, 0.0]),
+        ("range_max_m", |m| m.range_max_m = 70.0),
+        ("instance", |m| m.instance[100] = 3),
+    ];
+    for (field, spoil) in cases {
+        let mut m = ok.clone();
+        spoil(&mut m);
+        let e = m.validate(&lim).unwrap_err().to_string();
+        assert!(e.starts_with(field), "{field}: {e}");
+    }
+    // A pixel beyond the image is not part of it.
+    let mut m = ok.clone();
+    (m.width, m.instance[128 * 96 - 1]) = (64, 9);
+    m.validate(&lim).unwrap();
+}

@@ -41,9 +41,16 @@ pub const ARM: u8 = 255;
 /// Targets one frame can label (instances 1..=254).
 pub const MAX_INSTANCES: usize = 254;
 
-/// The camera (the scenario's `[camera]` table).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The camera (the scenario's `[camera]` table; every field has a default).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct CameraConfig {
+    /// The sim renders and publishes frames (`dkrrt/depth_image`).
+    pub enabled: bool,
+    /// Frames per second (plant clock), 1–60.
+    pub rate_hz: f64,
+    /// Time from capture to delivery, s (the frame is stamped with its capture time).
+    pub latency_s: f64,
     /// Image size, pixels (≤ [`MAX_WIDTH`] × [`MAX_HEIGHT`]).
     pub width: u32,
     pub height: u32,
@@ -66,10 +73,13 @@ pub struct CameraConfig {
 }
 
 impl Default for CameraConfig {
-    /// 128 × 96, 60° vertical field of view, at the frame's origin looking along +x with
+    /// Off; 20 frames/s delivered 30 ms after capture; 128 × 96, 60° vertical field of view, at the frame's origin looking along +x with
     /// +z up in the image, 0.2–15 m, σ = 2 mm + 1.5 mm/m², 1 % dropped.
     fn default() -> Self {
         CameraConfig {
+            enabled: false,
+            rate_hz: 20.0,
+            latency_s: 0.03,
             width: MAX_WIDTH as u32,
             height: MAX_HEIGHT as u32,
             fov_y_rad: 60f64.to_radians(),
@@ -102,6 +112,12 @@ impl CameraConfig {
     /// Checks every field.
     pub fn validate(&self) -> Result<(), CameraError> {
         let fail = |field, value: f64, reason| Err(CameraError { field, value, reason });
+        if !(1.0..=60.0).contains(&self.rate_hz) {
+            return fail("rate_hz", self.rate_hz, "must be within [1, 60] frames/s");
+        }
+        if !(0.0..1.0).contains(&self.latency_s) {
+            return fail("latency_s", self.latency_s, "must be within [0, 1) s");
+        }
         if self.width == 0 || self.width as usize > MAX_WIDTH {
             return fail("width", self.width as f64, "must be 1..=128");
         }
@@ -123,8 +139,12 @@ impl CameraConfig {
         if !(self.range_min_m >= 0.0 && self.range_min_m.is_finite()) {
             return fail("range_min_m", self.range_min_m, "must be >= 0");
         }
-        if !(self.range_max_m > self.range_min_m && self.range_max_m.is_finite()) {
-            return fail("range_max_m", self.range_max_m, "must be finite and above range_min_m");
+        if !(self.range_max_m > self.range_min_m && self.range_max_m <= 65.535) {
+            return fail(
+                "range_max_m",
+                self.range_max_m,
+                "must be above range_min_m and at most 65.535 m (u16 mm)",
+            );
         }
         if !(self.noise_base_m >= 0.0 && self.noise_base_m.is_finite()) {
             return fail("noise_base_m", self.noise_base_m, "must be >= 0");
