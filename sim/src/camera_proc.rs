@@ -5,7 +5,8 @@
 //! for the camera; if the camera thread holds the mailbox that instant, the capture is taken
 //! at the next tick) and publishes the plant time; the camera thread, with a node and
 //! publisher of its own (ports are not `Send`), renders the snapshot and publishes each frame
-//! once the plant clock passes its capture time + `latency_s`.
+//! once the plant clock passes its capture time + `latency_s`. The thread leaves the loop's
+//! SCHED_FIFO priority and CPU pinning (it would inherit them) for the normal scheduler.
 //!
 //! Lockstep: the loop renders and publishes inline ([`CameraSide::tick`]), so the frames come
 //! at the same plant times as in the in-process lockstep.
@@ -147,6 +148,8 @@ fn camera_thread(
     plant_ns: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
 ) -> Result<CameraReport, String> {
+    // Spawned by the real-time loop: not at its priority, not on its CPU.
+    dkrrt_rt::rtsetup::demote_current_thread();
     let bus = Bus::new(run, "sim-camera").map_err(|e| e.to_string())?;
     let mut publ = bus.publisher::<DepthImage>(Source::Sim).map_err(|e| e.to_string())?;
     let mut snap = Box::<Snapshot>::default();

@@ -94,3 +94,47 @@ pub fn apply(opt: &RtOptions) -> RtReport {
     }
     r
 }
+
+/// Puts the calling thread back on the normal scheduler, free to run on any online CPU: for
+/// a helper thread spawned by a real-time thread (it inherits SCHED_FIFO and the pinning),
+/// whose work must never hold the real-time loop's CPU at its priority. Returns whether both
+/// took effect (they cannot fail for a thread's own, lower settings).
+pub fn demote_current_thread() -> bool {
+    let p = libc::sched_param { sched_priority: 0 };
+    // SAFETY: valid sched_param; 0 = calling thread.
+    let sched = unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &p) } == 0;
+    // SAFETY: cpu_set_t is plain data; CPU_SET bounds-checks against its size.
+    let pinned = unsafe {
+        let mut set: libc::cpu_set_t = core::mem::zeroed();
+        let ncpu = libc::sysconf(libc::_SC_NPROCESSORS_ONLN).max(1) as usize;
+        for c in 0..ncpu.min(libc::CPU_SETSIZE as usize) {
+            libc::CPU_SET(c, &mut set);
+        }
+        libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set) == 0
+    };
+    sched && pinned
+}
+
+#[cfg(test)]
+mod demote_tests {
+    /// A helper thread of a real-time thread returns to the normal scheduler on any CPU.
+    #[test]
+    fn a_demoted_thread_runs_on_the_normal_scheduler_on_every_cpu() {
+        let h = std::thread::spawn(|| {
+            // SAFETY: plain syscalls on the calling thread with plain-data sets.
+            unsafe {
+                // Pinned to CPU 0 first (always permitted), as a real-time parent leaves it.
+                let mut one: libc::cpu_set_t = core::mem::zeroed();
+                libc::CPU_SET(0, &mut one);
+                assert_eq!(libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &one), 0);
+                assert!(super::demote_current_thread());
+                let mut set: libc::cpu_set_t = core::mem::zeroed();
+                assert_eq!(libc::sched_getaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &mut set), 0);
+                let ncpu = libc::sysconf(libc::_SC_NPROCESSORS_ONLN) as usize;
+                assert_eq!(libc::CPU_COUNT(&set) as usize, ncpu);
+                assert_eq!(libc::sched_getscheduler(0), libc::SCHED_OTHER);
+            }
+        });
+        h.join().unwrap();
+    }
+}
