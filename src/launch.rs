@@ -708,7 +708,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "first_contact": sim.pointer("/debris/first_contact"),
             "observation_frames": sim.pointer("/debris/observation_frames"),
         }) } else { Value::Null },
-        "camera": if sc.camera.enabled && sc.has_debris() { json!({
+        "camera": if sc.camera_on() { json!({
             "rate_hz": sc.camera.rate_hz,
             "frames": sim.pointer("/camera/stats/delivered"),
             "captured": sim.pointer("/camera/stats/captured"),

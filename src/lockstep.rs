@@ -47,6 +47,8 @@ pub struct EvalReport {
     pub debris: Option<DebrisStats>,
     /// Predictor figures, `null` without debris.
     pub predictor: Option<PredictorFigures>,
+    /// The depth camera's frames (`null` when off).
+    pub camera: Option<dkrrt_sim::camera::CameraStats>,
     /// Planner figures, `null` for the straight method.
     pub planner: Option<Summary>,
     /// Path figures of the real motion.
@@ -115,6 +117,19 @@ pub struct PredictorLoop {
     rate_hz: f64,
 }
 
+/// The sim's depth camera, in process; with `predictor.input = "depth"` its frames reach the
+/// predictor through the classical front end (`dkrrt_depthpose::perception`).
+pub struct CameraLoop {
+    pub side: dkrrt_sim::camera::CameraSide,
+    renderer: dkrrt_sim::camera::Renderer,
+    snap: Box<dkrrt_sim::camera::Snapshot>,
+    perception: dkrrt_depthpose::perception::DepthPerception,
+    /// The front end's observations of the frame delivered last.
+    frame: Box<DebrisObservation>,
+    /// The predictor reads the camera, not the pose sensor.
+    feeds_predictor: bool,
+}
+
 /// The true future, published on the predictor's plant-clock schedule (`oracle-rrt`).
 pub struct OracleLoop {
     pub table: TruthTable,
@@ -159,6 +174,8 @@ pub struct Lockstep {
     pub events: Vec<ModeEvent>,
     pub predictor: Option<PredictorLoop>,
     pub oracle: Option<OracleLoop>,
+    /// The depth camera (`[camera] enabled` or `predictor.input = "depth"`).
+    pub camera: Option<CameraLoop>,
     frame: Box<DebrisObservation>,
     pub source: TrajSource,
     /// The joint goal (a pose goal's IK solution).
@@ -215,6 +232,18 @@ impl Lockstep {
             }
         };
         let sim = SimCore::new(sc, model.clone())?;
+        let camera = if sc.camera_on() {
+            Some(CameraLoop {
+                side: dkrrt_sim::camera::CameraSide::new(&sc.camera)?,
+                renderer: dkrrt_sim::camera::Renderer::new(&sc.camera, sc.debris.base_lvlh)?,
+                snap: Box::default(),
+                perception: Default::default(),
+                frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
+                feeds_predictor: sc.depth_input(),
+            })
+        } else {
+            None
+        };
         let oracle = match (&sim.debris, oracle_wanted) {
             (Some(d), true) => {
                 let dt = sc.period_ns() as f64 * 1e-9;
@@ -284,6 +313,7 @@ impl Lockstep {
             events: Vec::with_capacity(256),
             predictor,
             oracle,
+            camera,
             frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
             source,
             goal,
@@ -349,8 +379,9 @@ impl Lockstep {
             self.sim.plant.offer_command(out.state_seq, &out.tau);
         }
         let pred = &mut self.predictor;
+        let poses = !self.camera.as_ref().is_some_and(|c| c.feeds_predictor);
         let _ = self.sim.step::<()>(&mut self.frame, |f| {
-            if let Some(p) = pred.as_mut() {
+            if let Some(p) = pred.as_mut().filter(|_| poses) {
                 let n = p.core.observe_then_forecast(f, &p.lim, p.rate_hz, &mut p.forecast);
                 if n > 0 {
                     p.forecasts += 1;
@@ -360,6 +391,23 @@ impl Lockstep {
             }
             Ok(())
         });
+        if let (Some(c), Some(side)) = (self.camera.as_mut(), self.sim.debris.as_mut()) {
+            let q: [f64; NJ] = self.sim.plant.true_state().0.into();
+            let pred = &mut self.predictor;
+            let CameraLoop { side: cam, renderer, snap, perception, frame, feeds_predictor } = c;
+            let _ = cam.tick::<()>(side, &q, snap, renderer, |img| {
+                let Some(p) = pred.as_mut().filter(|_| *feeds_predictor) else { return Ok(()) };
+                perception.convert(img, frame);
+                frame.header = img.header;
+                let n = p.core.observe_then_forecast(frame, &p.lim, p.rate_hz, &mut p.forecast);
+                if n > 0 {
+                    p.forecasts += 1;
+                    p.tracks = n as u32;
+                    p.fresh = true;
+                }
+                Ok(())
+            });
+        }
         if let Some(o) = self.oracle.as_mut() {
             // The predictor's plant-clock schedule, on the truth.
             let t = self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9;
@@ -488,6 +536,7 @@ impl Lockstep {
             plant: self.sim.plant.stats,
             final_q: q.into(),
             debris: self.sim.debris.as_ref().map(|d| d.stats),
+            camera: self.camera.as_ref().map(|c| c.side.stats),
             predictor: match (&self.predictor, &self.oracle) {
                 (Some(d), _) => Some(PredictorFigures {
                     method: sc.predictor_method().to_string(),

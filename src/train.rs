@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use dkrrt_deep::Progress;
-use dkrrt_predictor::eval::{markdown_table, run_study_with, StudyConfig};
+use dkrrt_predictor::eval::{markdown_table, run_study_views, StudyConfig, View};
 use dkrrt_predictor::recorded::{read_observations, train_from_observations};
 use dkrrt_predictor::training::{train_models, TrainOptions, TrainedModels};
 use dkrrt_predictor::Method;
@@ -197,7 +197,23 @@ pub fn predict_eval(
         None
     };
     let t = std::time::Instant::now();
-    let rows = run_study_with(&cfg, deep.as_ref()).map_err(|e| e.to_string())?;
+    // The depth camera's view of the same held-out runs, for the planner's predictor (issue
+    // #15): the cube rig of the default camera through the classical front end.
+    let rig = crate::depth_view::cube_rig(&dkrrt_config::Scenario::default_scenario().camera);
+    let rec = |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
+        crate::depth_view::record_depth(sc, seed, dur, dt, &rig)
+    };
+    let mut depth_pred = cfg.predictor;
+    depth_pred.filter.pos_sigma = depth_pred.filter.pos_sigma.max(dkrrt_planner::predict::DEPTH_POS_SIGMA_M);
+    depth_pred.filter.att_sigma =
+        depth_pred.filter.att_sigma.max(dkrrt_planner::predict::DEPTH_ATT_SIGMA_RAD);
+    let views: Vec<View> = cfg
+        .methods
+        .iter()
+        .filter(|m| **m == Method::DeepKoopmanOnline)
+        .map(|&method| View { name: "depth", method, predictor: depth_pred, record: &rec })
+        .collect();
+    let rows = run_study_views(&cfg, deep.as_ref(), &views).map_err(|e| e.to_string())?;
     println!("{}", markdown_table(&rows));
     println!(
         "{} scenes x {} methods, {} training + {} held-out runs of {} s per scene, seed {}, {:.1} s",

@@ -98,3 +98,34 @@ fn a_pose_goal_is_solved_and_reached_by_both_sources() {
     let e = dkrrt::lockstep::run(&sc).err().expect("out of reach");
     assert!(e.contains("out of reach"), "{e}");
 }
+
+/// `predictor.input = "depth"`: the camera turns on, and the predictor sees the debris only
+/// through its frames (the front end's observations), never the pose sensor's; the run is
+/// deterministic and reaches its goal without contact.
+#[test]
+fn the_predictor_can_see_through_the_depth_camera() {
+    let mut sc = Scenario::default_scenario();
+    sc.predictor.input = "depth".into();
+    assert!(!sc.camera.enabled && sc.camera_on(), "the depth input turns the camera on");
+    let a = dkrrt::lockstep::run(&sc).unwrap();
+    let b = dkrrt::lockstep::run(&sc).unwrap();
+    assert_eq!(a.final_q, b.final_q, "deterministic");
+    let cam = a.camera.expect("camera figures");
+    assert_eq!(cam.overrun, 0);
+    assert!(
+        cam.delivered + 1 >= cam.captured && cam.captured as f64 >= a.ticks as f64 * 1e-3 * sc.camera.rate_hz
+    );
+    let p = a.predictor.unwrap();
+    // Every camera frame, and nothing else, reached the predictor.
+    assert_eq!(p.observations.frames, cam.delivered);
+    assert!(p.observations.items > 50 && p.gate.accepted > 50, "{:?}", p.observations);
+    assert!(p.forecasts > 10);
+    assert!(!a.debris.unwrap().collided());
+    assert!(a.goal_reached_s.is_some(), "goal not reached");
+    // With poses the predictor reads the sensor's frames instead, and no camera runs.
+    let mut poses = sc.clone();
+    poses.predictor.input = "poses".into();
+    let c = dkrrt::lockstep::run(&poses).unwrap();
+    assert!(c.camera.is_none());
+    assert_eq!(c.predictor.unwrap().observations.frames, c.debris.unwrap().observation_frames);
+}

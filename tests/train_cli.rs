@@ -50,7 +50,20 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&rows_path).unwrap()).unwrap();
-    assert_eq!(rows.len(), 3 * 4);
+    // ... and the depth camera's view of the same runs for the planner's predictor (issue #15),
+    // with its observations' own errors.
+    assert_eq!(rows.len(), (3 + 1) * 4);
+    let depth: Vec<_> = rows.iter().filter(|r| r["method"] == "deep-koopman-online+depth").collect();
+    assert_eq!(depth.len(), 4);
+    for r in depth {
+        let (p, a) = (r["obs_pos_err_m"].as_f64().unwrap(), r["obs_axis_err_rad"].as_f64().unwrap());
+        assert!(p > 0.0 && p < 0.3 && a >= 0.0 && a < 0.5, "{r}");
+        assert!(r["pos_err_m"].as_f64().unwrap() < 1.0, "{r}");
+    }
+    assert!(rows
+        .iter()
+        .filter(|r| r["method"] != "deep-koopman-online+depth")
+        .all(|r| r.get("obs_pos_err_m").is_none()));
     // The printed target check is the ratio of the JSON rows (EDMD / deep at 2 s).
     let att = |m: &str| {
         let r = rows.iter().find(|r| r["method"] == m && r["horizon_s"] == 2.0).unwrap();

@@ -111,8 +111,20 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
     cfg.filter.att_sigma = sc.debris.att_sigma_rad.max(1e-4);
     cfg.filter.vel_sigma = sc.debris.vel_sigma_mps.max(1e-5);
     cfg.filter.rate_sigma = sc.debris.rate_sigma_radps.max(1e-5);
+    if sc.depth_input() {
+        // Poses from depth frames (`dkrrt_depthpose::perception`): a pixel spans z/f (6 cm at
+        // 5 m for the default camera), and occlusion and the visible side move the centroid;
+        // the front end's tests recover centres within 5–10 cm and axes within 0.05 rad.
+        cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
+        cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
+    }
     cfg
 }
+
+/// The measurement noise the predictor's filter assumes for poses from depth frames, m.
+pub const DEPTH_POS_SIGMA_M: f64 = 0.05;
+/// ... and for their attitudes, rad.
+pub const DEPTH_ATT_SIGMA_RAD: f64 = 0.05;
 
 fn training_runs(sc: &Scenario, scene: &Scene) -> Result<Vec<Recording>, String> {
     let named = SCENE_NAMES.contains(&sc.debris.scene.as_str());

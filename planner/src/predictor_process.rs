@@ -61,6 +61,14 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
 
     let bus = Bus::new(run, "predictor").map_err(|e| e.to_string())?;
     let mut obs_sub = bus.subscriber::<DebrisObservation>().map_err(|e| e.to_string())?;
+    // `predictor.input = "depth"`: the depth camera's frames, through the classical front end,
+    // in place of the pose sensor's observations.
+    let mut img_sub = match sc.depth_input() {
+        true => Some(bus.subscriber::<DepthImage>().map_err(|e| e.to_string())?),
+        false => None,
+    };
+    let mut perception = dkrrt_depthpose::perception::DepthPerception::default();
+    let mut seen = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut fc_pub = bus.publisher::<DebrisForecast>(Source::Predictor).map_err(|e| e.to_string())?;
     let mut prog_pub = bus.publisher::<PredictorProgress>(Source::Predictor).map_err(|e| e.to_string())?;
@@ -110,15 +118,23 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         };
         let mut newest = None::<Header>;
         if realtime {
-            obs_sub
-                .for_each_checked(
+            match img_sub.as_mut() {
+                Some(s) => s.for_each_checked(
+                    |m| m.validate(&lim),
+                    |img| {
+                        newest = Some(img.header);
+                        core.observe_frame(see(&mut perception, &mut seen, img), &lim)
+                    },
+                ),
+                None => obs_sub.for_each_checked(
                     |_| Ok(()),
                     |f| {
                         newest = Some(f.header);
                         core.observe_frame(f, &lim)
                     },
-                )
-                .map_err(|e| e.to_string())?;
+                ),
+            }
+            .map_err(|e| e.to_string())?;
             let t0 = mono_ns();
             let n = core.forecast_into(&mut msg);
             if n > 0 {
@@ -126,20 +142,23 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             }
         } else {
             let rate_hz = sc.predictor.rate_hz;
-            obs_sub
-                .for_each_checked(
-                    |_| Ok(()),
-                    |f| {
-                        newest = Some(f.header);
-                        let t0 = mono_ns();
-                        let n = core.observe_then_forecast(f, &lim, rate_hz, &mut msg);
-                        if n > 0 {
-                            let t = core.newest_t;
-                            publish(&mut msg, n, t0, t);
-                        }
-                    },
-                )
-                .map_err(|e| e.to_string())?;
+            let mut step = |f: &DebrisObservation, h: Header| {
+                newest = Some(h);
+                let t0 = mono_ns();
+                let n = core.observe_then_forecast(f, &lim, rate_hz, &mut msg);
+                if n > 0 {
+                    let t = core.newest_t;
+                    publish(&mut msg, n, t0, t);
+                }
+            };
+            match img_sub.as_mut() {
+                Some(s) => s.for_each_checked(
+                    |m| m.validate(&lim),
+                    |img| step(see(&mut perception, &mut seen, img), img.header),
+                ),
+                None => obs_sub.for_each_checked(|_| Ok(()), |f| step(f, f.header)),
+            }
+            .map_err(|e| e.to_string())?;
         }
         if let Some(e) = publish_err {
             return Err(e);
@@ -152,7 +171,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             prog.forecasts = forecasts;
             prog_pub.publish(&mut prog).map_err(|e| e.to_string())?;
         }
-        core.counters.frames_lost = obs_sub.lost;
+        core.counters.frames_lost = img_sub.as_ref().map_or(obs_sub.lost, |s| s.lost);
         hb.maybe_send(
             mono_ns(),
             false,
@@ -182,4 +201,16 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     };
     dkrrt_rt::write_stats("predictor", stats_path, &report)?;
     Ok(report)
+}
+
+/// A depth frame as the observation frame its objects make (measured at its capture; the
+/// header its own), to go the way of a sensor's frame.
+fn see<'a>(
+    perception: &mut dkrrt_depthpose::perception::DepthPerception,
+    seen: &'a mut DebrisObservation,
+    img: &DepthImage,
+) -> &'a DebrisObservation {
+    perception.convert(img, seen);
+    seen.header = img.header;
+    seen
 }

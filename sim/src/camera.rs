@@ -30,12 +30,13 @@ pub struct Snapshot {
     pub t_s: f64,
     /// (id, shape, position, attitude (w, x, y, z), bounding radius).
     pub objects: heapless::Vec<Object, MAX_SEEN>,
-    pub arm: [PosedCapsule; NJ],
+    /// The arm's link capsules (none: no arm in view).
+    pub arm: heapless::Vec<PosedCapsule, NJ>,
 }
 
 impl Default for Snapshot {
     fn default() -> Self {
-        Snapshot { t_s: f64::NAN, objects: heapless::Vec::new(), arm: [PosedCapsule::default(); NJ] }
+        Snapshot { t_s: f64::NAN, objects: heapless::Vec::new(), arm: heapless::Vec::new() }
     }
 }
 
@@ -43,9 +44,19 @@ impl Snapshot {
     /// Takes the world's objects and the arm at `q` (the plant's true configuration) at the
     /// world's time. Shapes are shared (reference-counted), not copied: no allocation.
     pub fn take(&mut self, side: &mut DebrisSide, q: &[f64; NJ]) {
-        self.t_s = side.world().time();
+        self.of_world(side.world());
+        self.arm.clear();
+        for c in side.arm_capsules(q) {
+            let _ = self.arm.push(*c);
+        }
+    }
+
+    /// Takes the world's objects at its time, and no arm. No allocation.
+    pub fn of_world(&mut self, world: &dkrrt_debris::DebrisWorld) {
+        self.t_s = world.time();
         self.objects.clear();
-        for d in side.world().debris().iter().take(MAX_SEEN) {
+        self.arm.clear();
+        for d in world.debris().iter().take(MAX_SEEN) {
             let qq = d.state.q.quaternion();
             let _ = self.objects.push((
                 d.id,
@@ -55,7 +66,6 @@ impl Snapshot {
                 d.props.bounding_radius,
             ));
         }
-        self.arm = *side.arm_capsules(q);
     }
 }
 

@@ -66,7 +66,7 @@ impl SimCamera {
     /// The camera of `sc` for run `run` (`None` when off or without debris). Allocates and
     /// starts the thread: start-up only.
     pub fn new(run: &str, sc: &Scenario) -> Result<Option<SimCamera>, String> {
-        if !sc.camera.enabled || !sc.has_debris() {
+        if !sc.camera_on() {
             return Ok(None);
         }
         let cfg = sc.camera;
@@ -121,6 +121,15 @@ impl SimCamera {
                 }
                 Ok(())
             }
+        }
+    }
+
+    /// Frames published so far (lockstep: the gate waits until the predictor has read them;
+    /// real time: not counted here, 0).
+    pub fn published(&self) -> u64 {
+        match self {
+            SimCamera::Inline { publ, .. } => publ.next_seq(),
+            SimCamera::Thread { .. } => 0,
         }
     }
 

@@ -172,7 +172,12 @@ pub fn run(
             eprintln!("sim: the arm is not at rest {STOP_BRAKE_AFTER_S} s after the stop: brakes engaged");
         }
         let (last, forced, stopping) = (step.last, step.forced, step.stopping);
-        let published = obs_pub.as_ref().map_or(0, |p| p.next_seq());
+        // The frames the predictor reads: the depth camera's with `predictor.input = "depth"`.
+        let published = if sc.depth_input() {
+            camera.as_ref().map_or(0, |c| c.published())
+        } else {
+            obs_pub.as_ref().map_or(0, |p| p.next_seq())
+        };
         if let (false, Some(g)) = (last || published == 0 || k * period_ns < next_plan_ns, prog_gate.as_mut())
         {
             let t0 = mono_ns();

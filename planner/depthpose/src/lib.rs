@@ -3,10 +3,12 @@
 //! in, and their centroid, covariance and principal axes are the object's pose estimate.
 //!
 //! What it is and is not:
-//! * The centroid is that of the **visible surface**: for a convex object it lies between the
-//!   object's centre and the camera (a ball's about 2/3 of its radius out: pixels sample the
-//!   surface evenly over its image, not over its area). The covariance says
-//!   how the points spread (extent, not uncertainty of the centre).
+//! * The centroid is that of the **visible surface**, each pixel weighted by the square of its
+//!   depth (the area it covers), so a rod or panel reaching towards the camera is not pulled
+//!   to its near end by perspective. For a convex object it lies between the object's centre
+//!   and the camera (a ball's about 2/3 of its radius out: its pixels sample the surface
+//!   evenly over its image, not over its area). The covariance says how the points spread
+//!   (extent, not uncertainty of the centre), with the same weights.
 //! * The principal axes are sign-free directions (an axis and its opposite are the same): a
 //!   rod's first axis is its axis, a panel's last axis its normal. A symmetric shape's axes
 //!   are as ambiguous as the shape.
@@ -14,6 +16,8 @@
 //!   eigen-decomposition per instance: allocation-free.
 //!
 //! This is what the learned features f_θ of the paper's Algorithm 1 must beat.
+
+pub mod perception;
 
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
@@ -56,6 +60,8 @@ pub struct PoseEstimate {
 #[derive(Debug, Clone, Copy, Default)]
 struct Sums {
     n: usize,
+    /// Sum of the weights (z²: the area a pixel covers grows with the square of its depth).
+    w: f64,
     s: [f64; 3],
     ss: [[f64; 3]; 3],
     /// First point (a shift that keeps the sums well conditioned).
@@ -87,12 +93,24 @@ impl Extractor {
         instance: &[u8],
         out: &mut [PoseEstimate],
     ) -> usize {
+        self.extract_with(cam, |k| depth[k] as f64, instance, out)
+    }
+
+    /// As [`Extractor::extract`], with pixel `k`'s depth (m, 0 = no return) from `depth(k)`
+    /// (e.g. a message's millimetres).
+    pub fn extract_with(
+        &mut self,
+        cam: &Intrinsics,
+        depth: impl Fn(usize) -> f64,
+        instance: &[u8],
+        out: &mut [PoseEstimate],
+    ) -> usize {
         self.sums.iter_mut().for_each(|s| *s = Sums::default());
         let r = &cam.rotation;
         for v in 0..cam.height {
             for u in 0..cam.width {
                 let k = v * cam.width + u;
-                let (z, inst) = (depth[k] as f64, instance[k]);
+                let (z, inst) = (depth(k), instance[k]);
                 if z <= 0.0 || inst == 0 || inst as usize > MAX_INSTANCES {
                     continue;
                 }
@@ -105,11 +123,13 @@ impl Extractor {
                     s.origin = p;
                 }
                 let d = [p[0] - s.origin[0], p[1] - s.origin[1], p[2] - s.origin[2]];
+                let w = z * z;
                 s.n += 1;
+                s.w += w;
                 for i in 0..3 {
-                    s.s[i] += d[i];
+                    s.s[i] += w * d[i];
                     for j in 0..3 {
-                        s.ss[i][j] += d[i] * d[j];
+                        s.ss[i][j] += w * d[i] * d[j];
                     }
                 }
             }
@@ -120,7 +140,7 @@ impl Extractor {
             if s.n < self.min_points.max(1) || n_out >= out.len() {
                 continue;
             }
-            let n = s.n as f64;
+            let n = s.w;
             let mean = [s.s[0] / n, s.s[1] / n, s.s[2] / n];
             let cov = Matrix3::from_fn(|i, j| s.ss[i][j] / n - mean[i] * mean[j]);
             let eig = SymmetricEigen::new(cov);

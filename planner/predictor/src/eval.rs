@@ -46,6 +46,9 @@ pub enum EvalError {
     /// Deep model file.
     #[error("deep model file: {0}")]
     ModelFile(#[from] dkrrt_deep::ModelFileError),
+    /// A [`View`]'s recording.
+    #[error("view {view}: {detail}")]
+    View { view: String, detail: String },
     /// Model fit.
     #[error("fit of {method} on {scene}: {source}")]
     Fit {
@@ -83,6 +86,27 @@ pub struct StudyRow {
     pub surface_err_m: f64,
     /// `bound_m / surface_err_m`.
     pub bound_ratio: f64,
+    /// Rows of a [`View`] (e.g. the depth camera): the median error of the observations
+    /// themselves against the truth at their measurement time, position, m…
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub obs_pos_err_m: Option<f64>,
+    /// … and body z axis (a rod's axis, a panel's normal; sign-free), rad.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub obs_axis_err_rad: Option<f64>,
+}
+
+/// Another way to observe the held-out runs (e.g. through a depth camera and its front end):
+/// `record(scene, seed, duration, sim_dt)` simulates the run as [`record`] does (same scene,
+/// same seed: the same true motion) and returns what this view observes, with the median
+/// errors of its observations (position m, body z axis rad). Its rows are `method` forecasting
+/// from those observations, named `method+name`; the models are fitted as for `method`.
+pub struct View<'a> {
+    pub name: &'a str,
+    pub method: Method,
+    /// The online predictor on these observations (its filter's measurement noise).
+    pub predictor: PredictorConfig,
+    #[allow(clippy::type_complexity)]
+    pub record: &'a dyn Fn(&Scene, u64, f64, f64) -> Result<(Recording, [f64; 2]), EvalError>,
 }
 
 /// Size and protocol of the study.
@@ -434,6 +458,15 @@ pub fn run_study(cfg: &StudyConfig) -> Result<Vec<StudyRow>, EvalError> {
 /// `cfg.deep_model` are ignored). Fails with [`EvalError::Fit`] if a deep method is listed
 /// and `deep` is `None`.
 pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result<Vec<StudyRow>, EvalError> {
+    run_study_views(cfg, deep, &[])
+}
+
+/// [`run_study_with`], plus per scene the rows of every [`View`] on the same held-out runs.
+pub fn run_study_views(
+    cfg: &StudyConfig,
+    deep: Option<&TrainedModels>,
+    views: &[View],
+) -> Result<Vec<StudyRow>, EvalError> {
     let mut rows = Vec::new();
     for (si, scene) in cfg.scenes.iter().enumerate() {
         let base = cfg.seed + 10_000 * si as u64;
@@ -451,12 +484,42 @@ pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result
         let mut fit = cfg.fit;
         fit.frame_rate = train.first().map_or(fit.frame_rate, |r| r.mean_motion);
         let ts = training_set(&train, fit.dt, fit.horizon, cfg.warmup, &cfg.predictor);
-        for &method in &cfg.methods {
+        let plain = cfg.methods.iter().map(|&m| (m, m.name().to_string(), None));
+        #[allow(clippy::type_complexity)]
+        let mut seen: Vec<(
+            Method,
+            String,
+            Option<(Vec<Recording>, Vec<f64>, Vec<f64>, PredictorConfig)>,
+        )> = Vec::new();
+        for v in views {
+            let mut recs = Vec::new();
+            let (mut ep, mut ea) = (Vec::new(), Vec::new());
+            for r in 0..cfg.test_runs {
+                let s = base + 1000 + r as u64;
+                let sc = perturbed_scene(scene, s, cfg.perturbation)?;
+                let (rec, e) = (v.record)(&sc, s, cfg.duration, cfg.sim_dt)?;
+                recs.push(rec);
+                (ep.push(e[0]), ea.push(e[1]));
+            }
+            seen.push((
+                v.method,
+                format!("{}+{}", v.method.name(), v.name),
+                Some((recs, ep, ea, v.predictor)),
+            ));
+        }
+        for (method, label, view) in plain.chain(seen) {
             let models = Models::fit_with_deep(method, &ts, &fit, deep.map(|d| &d.attitude))
                 .map_err(|source| EvalError::Fit { scene: scene.clone(), method: method.name(), source })?;
             let mut errs = Errors::default();
-            for rec in &test {
-                let mut pred = DebrisPredictor::new(models.clone(), cfg.predictor);
+            // A view's errors: the median over its held-out runs of each run's median.
+            let (recs, obs_err, pcfg) = match &view {
+                Some((recs, ep, ea, pc)) => {
+                    (recs, Some((median(&mut ep.clone()), median(&mut ea.clone()))), *pc)
+                }
+                None => (&test, None, cfg.predictor),
+            };
+            for rec in recs {
+                let mut pred = DebrisPredictor::new(models.clone(), pcfg);
                 evaluate(&mut pred, rec, &cfg.horizons, cfg.warmup, cfg.eval_every, &mut errs);
             }
             for (hj, &h) in cfg.horizons.iter().enumerate() {
@@ -467,7 +530,7 @@ pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result
                 let surface_err_m = median(&mut sf.iter().map(|s| s.1).collect::<Vec<_>>());
                 rows.push(StudyRow {
                     scene: scene.clone(),
-                    method: method.name().to_string(),
+                    method: label.clone(),
                     horizon_s: h,
                     pos_err_m: errs.pos.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     att_err_rad: errs.att.get_mut(hj).map_or(f64::NAN, |v| median(v)),
@@ -476,6 +539,8 @@ pub fn run_study_with(cfg: &StudyConfig, deep: Option<&TrainedModels>) -> Result
                     bound_m,
                     surface_err_m,
                     bound_ratio: bound_m / surface_err_m,
+                    obs_pos_err_m: obs_err.map(|e| e.0),
+                    obs_axis_err_rad: obs_err.map(|e| e.1),
                 });
             }
         }
@@ -589,6 +654,16 @@ pub fn markdown_table(rows: &[StudyRow]) -> String {
         "| scene | method | horizon [s] | median pos err [m] | median att err [rad] | n | contained | median bound [m] | median surface err [m] | bound / err |\n",
     );
     s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut views = String::new();
+    for r in rows.iter().filter(|r| r.obs_pos_err_m.is_some() && r.horizon_s == rows[0].horizon_s) {
+        views.push_str(&format!(
+            "\n{} {}: its observations' median errors: position {:.4} m, body z axis {:.4} rad",
+            r.scene,
+            r.method,
+            r.obs_pos_err_m.unwrap_or(f64::NAN),
+            r.obs_axis_err_rad.unwrap_or(f64::NAN)
+        ));
+    }
     for r in rows {
         s.push_str(&format!(
             "| {} | {} | {} | {:.4} | {:.4} | {} | {:.2}% | {:.3} | {:.3} | {:.1} |\n",
@@ -604,6 +679,7 @@ pub fn markdown_table(rows: &[StudyRow]) -> String {
             r.bound_ratio
         ));
     }
+    s.push_str(&views);
     s
 }
 

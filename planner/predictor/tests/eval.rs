@@ -69,6 +69,8 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         bound_m: 0.1,
         surface_err_m: 0.05,
         bound_ratio: 2.0,
+        obs_pos_err_m: None,
+        obs_axis_err_rad: None,
     };
     let rows = vec![
         r("tumbling-rods", "edmd-poly", 2.0, 0.04, 0.6),

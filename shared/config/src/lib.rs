@@ -478,6 +478,15 @@ pub struct PredictorCfg {
     pub fit: String,
     pub fit_seed: u64,
     pub cpu: i32,
+    /// What the predictor observes: `poses` (the pose sensor's `dkrrt/debris_observation`)
+    /// or `depth` (the sim's depth camera, `dkrrt/depth_image`, through the classical
+    /// front end `dkrrt_depthpose::perception`; turns the camera on).
+    #[serde(default = "poses_input")]
+    pub input: String,
+}
+
+fn poses_input() -> String {
+    "poses".into()
 }
 
 fn scene_fit() -> String {
@@ -617,6 +626,16 @@ impl Scenario {
             "edmd-rrt" => EDMD_BASELINE,
             _ => &self.predictor.method,
         }
+    }
+
+    /// Whether the predictor observes through the depth camera (`predictor.input = "depth"`).
+    pub fn depth_input(&self) -> bool {
+        self.predictor.input == "depth"
+    }
+
+    /// Whether the sim renders the depth camera: `[camera] enabled`, or the predictor reads it.
+    pub fn camera_on(&self) -> bool {
+        self.has_debris() && (self.camera.enabled || self.depth_input())
     }
 
     /// The embedded default scenario.
@@ -900,6 +919,13 @@ impl Scenario {
         c.at_most("predictor.dt_s", p.dt_s, 1.0, "s")?;
         if p.fit_runs == 0 || p.fit_runs > 64 {
             return Err(c.fail("predictor.fit_runs", p.fit_runs, "must be 1..=64"));
+        }
+        if p.input != "poses" && p.input != "depth" {
+            return Err(c.fail(
+                "predictor.input",
+                format!("{:?}", p.input),
+                "must be \"poses\" or \"depth\"",
+            ));
         }
         if p.fit != "scene" && p.fit != "generic" {
             return Err(c.fail("predictor.fit", format!("{:?}", p.fit), "must be \"scene\" or \"generic\""));

@@ -1,0 +1,304 @@
+//! A classical perception front end on the depth camera: each segmented `DepthImage` becomes
+//! a `DebrisObservation` frame (pose and shape per object, measured at the capture time), so
+//! the predictor reads the camera through the message it already reads from a pose sensor.
+//!
+//! Per instance, the [`Extractor`]'s centroid and principal axes, then per object id:
+//! * **Class**, from the largest spread seen per principal axis so far (a tumbling object
+//!   shows its sides in turn; one view can hide an extent): a **rod** when the first spread
+//!   is over 3 times the second, a **panel** when the third is under a fifth of the second,
+//!   else **bulky** (balls, fragments).
+//! * **Shape**, from those spreads (points spread evenly over an extent 2a have σ = a/√3; a
+//!   ball's visible cap spreads σ = r/2 sideways): a rod is a capsule of half length √3·σ₀
+//!   and radius 2σ₁ (≥ 2 cm), a panel a box of half extents √3·σ (≥ 1 cm thick), a bulky
+//!   object a sphere of radius 2σ₀.
+//! * **Position**: the centroid of the visible surface lies in front of a bulky object's
+//!   centre (a ball's by 2r/3, when its cap's thinnest spread is 0.236 r): it is moved back
+//!   along the camera ray by 2.83 × the thinnest spread. A rod's or a panel's visible centroid
+//!   is its centre (thin).
+//! * **Attitude**: a rod's body z is its axis, turned from the last attitude by the smallest
+//!   rotation (the spin about the axis is not observable, so it is not made up); a panel's
+//!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
+//!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
+//!   a noisy one would trip the predictor's attitude gate).
+//!
+//! Allocation-free after construction.
+
+use dkrrt_msg::{DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEPTH_MAX_INSTANCES, MAX_DEBRIS};
+
+use crate::{Extractor, Intrinsics, PoseEstimate};
+
+/// What an object looks like to the front end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    Rod,
+    Panel,
+    Bulky,
+}
+
+/// Objects remembered (the oldest seen is forgotten first).
+pub const MAX_KNOWN: usize = 128;
+
+#[derive(Debug, Clone, Copy)]
+struct Known {
+    id: u32,
+    /// Largest spread seen along each principal axis (by rank), m.
+    spread: [f64; 3],
+    q: [f64; 4],
+    last_frame: u64,
+}
+
+/// Counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PerceptionStats {
+    pub frames: u64,
+    /// Objects reported.
+    pub objects: u64,
+    /// Instances beyond the 32 items of one observation frame (not reported).
+    pub dropped: u64,
+}
+
+/// The front end (per-object memory and the extractor's buffers).
+pub struct DepthPerception {
+    extractor: Extractor,
+    est: Box<[PoseEstimate; DEPTH_MAX_INSTANCES]>,
+    known: heapless::Vec<Known, MAX_KNOWN>,
+    pub stats: PerceptionStats,
+}
+
+impl Default for DepthPerception {
+    fn default() -> Self {
+        let zero = PoseEstimate {
+            instance: 0,
+            points: 0,
+            centroid: [0.0; 3],
+            covariance: [[0.0; 3]; 3],
+            axes: [[0.0; 3]; 3],
+            spread: [0.0; 3],
+        };
+        DepthPerception {
+            extractor: Extractor::default(),
+            est: Box::new([zero; DEPTH_MAX_INSTANCES]),
+            known: heapless::Vec::new(),
+            stats: PerceptionStats::default(),
+        }
+    }
+}
+
+/// The class of an object whose largest spreads per principal axis are `s`.
+pub fn classify(s: &[f64; 3]) -> Class {
+    if s[0] > 3.0 * s[1] {
+        Class::Rod
+    } else if s[2] < 0.2 * s[1] {
+        Class::Panel
+    } else {
+        Class::Bulky
+    }
+}
+
+/// The shape of class `c` with largest spreads `s`, and its bounding radius.
+pub fn shape_of(c: Class, s: &[f64; 3]) -> (DebrisShape, f64) {
+    let r3 = 3f64.sqrt();
+    match c {
+        Class::Rod => {
+            let (h, r) = (r3 * s[0], (2.0 * s[1]).max(0.02));
+            (DebrisShape::capsule(h, r), h + r)
+        }
+        Class::Panel => {
+            let e = [r3 * s[0], r3 * s[1], (r3 * s[2]).max(0.01)];
+            (DebrisShape::cuboid(e, [0.0; 3]), (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+        }
+        Class::Bulky => {
+            let r = (2.0 * s[0]).max(0.01);
+            (DebrisShape::sphere(r), r)
+        }
+    }
+}
+
+impl DepthPerception {
+    /// Converts `img` into `out`: one item per object with enough valid pixels (at most
+    /// [`MAX_DEBRIS`], in instance order; more are counted as dropped), measured at the capture time
+    /// (`header.stamp_ns`), poses in the base frame. `out.header` is left to the caller (the
+    /// frame's delivery). Returns the number of items.
+    pub fn convert(&mut self, img: &DepthImage, out: &mut DebrisObservation) -> usize {
+        self.stats.frames += 1;
+        let frame = self.stats.frames;
+        let cam = intrinsics(img);
+        let n_px = img.width as usize * img.height as usize;
+        let n = self.extractor.extract_with(
+            &cam,
+            |k| img.depth_mm[k] as f64 * 1e-3,
+            &img.instance[..n_px],
+            &mut self.est[..],
+        );
+        let mut count = 0;
+        for j in 0..n {
+            let e = self.est[j];
+            let k = e.instance as usize;
+            if k == 0 || k > img.n_instances as usize {
+                continue;
+            }
+            if count == MAX_DEBRIS {
+                self.stats.dropped += 1;
+                continue;
+            }
+            let id = img.ids[k - 1];
+            let slot = self.slot(id);
+            let kn = &mut self.known[slot];
+            for i in 0..3 {
+                kn.spread[i] = kn.spread[i].max(e.spread[i]);
+            }
+            kn.last_frame = frame;
+            let class = classify(&kn.spread);
+            let (shape, radius) = shape_of(class, &kn.spread);
+            let mut p = e.centroid;
+            if class == Class::Bulky {
+                let ray: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
+                let l = norm(&ray).max(1e-9);
+                let back = 2.83 * e.spread[2];
+                p = std::array::from_fn(|i| p[i] + ray[i] / l * back);
+            }
+            kn.q = match class {
+                Class::Rod => rod_attitude(&kn.q, &e.axes[0]),
+                Class::Panel => nearest_frame(&kn.q, &e.axes[0], &e.axes[1]),
+                Class::Bulky => kn.q,
+            };
+            out.items[count] = DebrisObs {
+                id,
+                flags: 0,
+                t_meas_ns: img.header.stamp_ns,
+                p,
+                q: kn.q,
+                v: [0.0; 3],
+                w: [0.0; 3],
+                bounding_radius: radius,
+                shape,
+            };
+            count += 1;
+        }
+        out.count = count as u32;
+        self.stats.objects += count as u64;
+        count
+    }
+
+    /// The memory of object `id` (new: no spread seen, identity attitude; the table full:
+    /// the object seen longest ago is forgotten).
+    fn slot(&mut self, id: u32) -> usize {
+        if let Some(i) = self.known.iter().position(|k| k.id == id) {
+            return i;
+        }
+        let fresh = Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0 };
+        if self.known.push(fresh).is_ok() {
+            return self.known.len() - 1;
+        }
+        let (i, _) =
+            self.known.iter().enumerate().min_by_key(|(_, k)| k.last_frame).expect("full, so not empty");
+        self.known[i] = fresh;
+        i
+    }
+}
+
+/// The camera of a message, as the extractor takes it.
+pub fn intrinsics(img: &DepthImage) -> Intrinsics {
+    Intrinsics {
+        width: img.width as usize,
+        height: img.height as usize,
+        f: img.focal_px,
+        cx: img.cx,
+        cy: img.cy,
+        position: img.position_m,
+        rotation: rotation(&img.orientation),
+    }
+}
+
+/// Rotation matrix (rows) of a unit quaternion (w, x, y, z).
+fn rotation(q: &[f64; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = *q;
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
+/// The unit quaternion (w ≥ 0 not enforced) of the rotation whose columns are `c`.
+fn from_columns(c: &[[f64; 3]; 3]) -> [f64; 4] {
+    // m[i][j] = c[j][i].
+    let m = |i: usize, j: usize| c[j][i];
+    let tr = m(0, 0) + m(1, 1) + m(2, 2);
+    let q = if tr > 0.0 {
+        let s = (tr + 1.0).sqrt() * 2.0;
+        [0.25 * s, (m(2, 1) - m(1, 2)) / s, (m(0, 2) - m(2, 0)) / s, (m(1, 0) - m(0, 1)) / s]
+    } else if m(0, 0) > m(1, 1) && m(0, 0) > m(2, 2) {
+        let s = (1.0 + m(0, 0) - m(1, 1) - m(2, 2)).sqrt() * 2.0;
+        [(m(2, 1) - m(1, 2)) / s, 0.25 * s, (m(0, 1) + m(1, 0)) / s, (m(0, 2) + m(2, 0)) / s]
+    } else if m(1, 1) > m(2, 2) {
+        let s = (1.0 + m(1, 1) - m(0, 0) - m(2, 2)).sqrt() * 2.0;
+        [(m(0, 2) - m(2, 0)) / s, (m(0, 1) + m(1, 0)) / s, 0.25 * s, (m(1, 2) + m(2, 1)) / s]
+    } else {
+        let s = (1.0 + m(2, 2) - m(0, 0) - m(1, 1)).sqrt() * 2.0;
+        [(m(1, 0) - m(0, 1)) / s, (m(0, 2) + m(2, 0)) / s, (m(1, 2) + m(2, 1)) / s, 0.25 * s]
+    };
+    let n = norm4(&q);
+    q.map(|v| v / n)
+}
+
+/// A panel's attitude: body axes x, y along `a0`, `a1` (z their cross product), the signs
+/// giving the attitude nearest `prev`, signed like it.
+fn nearest_frame(prev: &[f64; 4], a0: &[f64; 3], a1: &[f64; 3]) -> [f64; 4] {
+    let mut best = *prev;
+    let mut best_dot = -1.0;
+    for (s0, s1) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+        let x = a0.map(|v| v * s0);
+        let y = a1.map(|v| v * s1);
+        let z = cross(&x, &y);
+        let mut q = from_columns(&[x, y, z]);
+        let d = dot4(&q, prev);
+        if d < 0.0 {
+            q = q.map(|v| -v);
+        }
+        if d.abs() > best_dot {
+            (best, best_dot) = (q, d.abs());
+        }
+    }
+    best
+}
+
+/// A rod's attitude: `prev` turned by the smallest rotation that takes its body z onto the
+/// axis `a` (the sign of `a` nearest that z).
+fn rod_attitude(prev: &[f64; 4], a: &[f64; 3]) -> [f64; 4] {
+    let r = rotation(prev);
+    let z = [r[0][2], r[1][2], r[2][2]];
+    let a = if a[0] * z[0] + a[1] * z[1] + a[2] * z[2] < 0.0 { a.map(|v| -v) } else { *a };
+    let c = cross(&z, &a);
+    let swing = [1.0 + z[0] * a[0] + z[1] * a[1] + z[2] * a[2], c[0], c[1], c[2]];
+    let n = norm4(&swing);
+    let swing = swing.map(|v| v / n);
+    let q = mul(&swing, prev);
+    let n = norm4(&q);
+    q.map(|v| v / n)
+}
+
+fn mul(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn norm(a: &[f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+fn norm4(a: &[f64; 4]) -> f64 {
+    a.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+fn dot4(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
