@@ -5,8 +5,7 @@
 //! The rig: six cameras at the module's origin, one per cube face (the scenes' objects lie
 //! all around it), each the scenario default's image and noise with a 90° vertical field of
 //! view, capturing at `rate_hz` and delivering `latency_s` later; the arm is not in these runs.
-//! An object two faces see is reported twice per capture; the predictor takes the first face's
-//! report (the second one is not newer) and counts the other as out of order.
+//! An object two faces see in one capture is reported once, from the first face that shows it.
 
 use dkrrt_camera::CameraConfig;
 use dkrrt_debris::{DebrisWorld, Observation, Scene, SensorConfig};
@@ -14,37 +13,18 @@ use dkrrt_depthpose::perception::DepthPerception;
 use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed};
 use dkrrt_predictor::eval::{record, EvalError, Recording};
 use dkrrt_sim::camera::{CaptureClock, Renderer, Snapshot};
-use nalgebra::{UnitQuaternion, Vector3};
 
-/// The six cube-face cameras at the origin, with `base`'s image, range, noise, rate, latency.
+/// The six cube-face cameras at the origin, with `base`'s image, range, noise, rate, latency
+/// and a 90° vertical field of view ([`CameraConfig::rig`]).
 pub fn cube_rig(base: &CameraConfig) -> Vec<CameraConfig> {
-    let look_x = {
-        let q = dkrrt_camera::LOOK_ALONG_X;
-        UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]))
-    };
-    let turns = [
-        UnitQuaternion::identity(),
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI),
-        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), -std::f64::consts::FRAC_PI_2),
-        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2),
-        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2),
-    ];
-    turns
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let q = t * look_x;
-            CameraConfig {
-                enabled: true,
-                position_m: [0.0; 3],
-                orientation: [q.w, q.i, q.j, q.k],
-                fov_y_rad: std::f64::consts::FRAC_PI_2,
-                seed: base.seed + i as u64,
-                ..*base
-            }
-        })
-        .collect()
+    CameraConfig {
+        enabled: true,
+        faces: 6,
+        position_m: [0.0; 3],
+        fov_y_rad: std::f64::consts::FRAC_PI_2,
+        ..*base
+    }
+    .rig()
 }
 
 fn view_err(detail: impl ToString) -> EvalError {

@@ -121,7 +121,7 @@ pub struct PredictorLoop {
 /// predictor through the classical front end (`dkrrt_depthpose::perception`).
 pub struct CameraLoop {
     pub side: dkrrt_sim::camera::CameraSide,
-    renderer: dkrrt_sim::camera::Renderer,
+    renderers: Vec<dkrrt_sim::camera::Renderer>,
     snap: Box<dkrrt_sim::camera::Snapshot>,
     perception: dkrrt_depthpose::perception::DepthPerception,
     /// The front end's observations of the frame delivered last.
@@ -235,7 +235,7 @@ impl Lockstep {
         let camera = if sc.camera_on() {
             Some(CameraLoop {
                 side: dkrrt_sim::camera::CameraSide::new(&sc.camera)?,
-                renderer: dkrrt_sim::camera::Renderer::new(&sc.camera, sc.debris.base_lvlh)?,
+                renderers: dkrrt_sim::camera::Renderer::rig(&sc.camera, sc.debris.base_lvlh)?,
                 snap: Box::default(),
                 perception: Default::default(),
                 frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
@@ -394,8 +394,8 @@ impl Lockstep {
         if let (Some(c), Some(side)) = (self.camera.as_mut(), self.sim.debris.as_mut()) {
             let q: [f64; NJ] = self.sim.plant.true_state().0.into();
             let pred = &mut self.predictor;
-            let CameraLoop { side: cam, renderer, snap, perception, frame, feeds_predictor } = c;
-            let _ = cam.tick::<()>(side, &q, snap, renderer, |img| {
+            let CameraLoop { side: cam, renderers, snap, perception, frame, feeds_predictor } = c;
+            let _ = cam.tick::<()>(side, &q, snap, renderers, |img| {
                 let Some(p) = pred.as_mut().filter(|_| *feeds_predictor) else { return Ok(()) };
                 perception.convert(img, frame);
                 frame.header = img.header;

@@ -315,7 +315,7 @@ enum Cmd {
         #[arg(long)]
         episodes: Option<u64>,
         /// Comma-separated methods (default: all six): straight, rrt-static, cv-rrt, edmd-rrt,
-        /// dk-rrt, oracle-rrt.
+        /// dk-rrt, oracle-rrt; and dk-rrt-depth (dk-rrt seeing through the depth camera).
         #[arg(
             long,
             value_delimiter = ',',

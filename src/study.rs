@@ -158,7 +158,7 @@ pub fn run_episode(
     let res = (|| -> Result<(), String> {
         let (sc, ep) = episode.as_ref().map_err(|e| e.clone())?;
         let mut sc = sc.clone();
-        sc.planner.method = method.to_string();
+        set_method(&mut sc, method);
         row.straight_duration_s = ep.straight_duration_s;
         row.time_limit_s = ep.time_limit_s;
         let mut ls = Lockstep::with_models(&sc, models.cloned())?;
@@ -239,7 +239,7 @@ pub fn fit_methods(
     let mut out: Vec<MethodFit> = Vec::new();
     for m in methods {
         let mut sc = base.clone();
-        sc.planner.method = m.clone();
+        set_method(&mut sc, m);
         // What the method forecasts with, and the predictor models its run needs (the
         // straight method plans on nothing but keeps the default predictor running, for the
         // report; rrt-static uses the predictor's filtered poses only).
@@ -284,6 +284,21 @@ pub fn fit_methods(
     Ok(out)
 }
 
+/// The camera variant of dk-rrt (issue #15): the same planner and predictor, the predictor
+/// seeing the debris through the sim's depth camera (`predictor.input = "depth"`, the
+/// scenario's `[camera]`) instead of the pose sensor. Not in the default method list.
+pub const DK_RRT_DEPTH: &str = "dk-rrt-depth";
+
+/// Sets the scenario of a study method: a planning method, or [`DK_RRT_DEPTH`].
+pub fn set_method(sc: &mut Scenario, method: &str) {
+    if method == DK_RRT_DEPTH {
+        sc.planner.method = "dk-rrt".into();
+        sc.predictor.input = "depth".into();
+    } else {
+        sc.planner.method = method.to_string();
+    }
+}
+
 /// Runs the study; rows stream to `rows_path` (JSON lines) as they finish.
 pub fn run(
     opts: &StudyOptions,
@@ -296,8 +311,11 @@ pub fn run(
         }
     }
     for m in &opts.methods {
-        if !PLANNER_METHODS.contains(&m.as_str()) {
-            return Err(format!("--methods: unknown method {m:?} ({})", PLANNER_METHODS.join(", ")));
+        if !PLANNER_METHODS.contains(&m.as_str()) && m != DK_RRT_DEPTH {
+            return Err(format!(
+                "--methods: unknown method {m:?} ({}, {DK_RRT_DEPTH})",
+                PLANNER_METHODS.join(", ")
+            ));
         }
     }
     let base = base_scenario();
@@ -466,7 +484,7 @@ pub fn trace_episode(
         fits.iter().find(|f| f.planner_method == method).ok_or_else(|| format!("no fit for {method}"))?;
     let (sc, ep) = episode_scenario(&base, scene, index, opts.seed, opts.pose_goals)?;
     let mut sc = sc;
-    sc.planner.method = method.to_string();
+    set_method(&mut sc, method);
     let mut ls = Lockstep::with_models(&sc, fit.models.clone())?;
     ls.keep_trace(ep.time_limit_s + 1.0);
     let ticks = (ep.time_limit_s * sc.run.control_hz).round() as u64;

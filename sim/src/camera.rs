@@ -90,6 +90,11 @@ impl Renderer {
         Ok(Renderer { camera, cfg: *cfg, frame: DepthFrame::default() })
     }
 
+    /// The renderers of `cfg`'s cameras ([`CameraConfig::rig`]: one, or a cube rig of six).
+    pub fn rig(cfg: &CameraConfig, base_lvlh: [f64; 3]) -> Result<Vec<Renderer>, String> {
+        cfg.rig().iter().map(|c| Renderer::new(c, base_lvlh)).collect()
+    }
+
     /// Renders `snap` into `out` (stamped with the capture time; depth in mm, 0 = no return,
     /// farther than 65.535 m saturates). Allocation-free.
     pub fn render(&mut self, snap: &Snapshot, out: &mut DepthImage) {
@@ -169,10 +174,11 @@ pub struct CameraStats {
 }
 
 impl CameraSide {
-    /// The schedule of `cfg` (validated). Allocates the ring: `latency · rate + 2` frames.
+    /// The schedule of `cfg` (validated). Allocates the ring: `latency · rate + 2` captures
+    /// of `faces` frames each.
     pub fn new(cfg: &CameraConfig) -> Result<CameraSide, String> {
         cfg.validate().map_err(|e| e.to_string())?;
-        let slots = (cfg.latency_s * cfg.rate_hz).ceil() as usize + 2;
+        let slots = ((cfg.latency_s * cfg.rate_hz).ceil() as usize + 2) * cfg.faces as usize;
         let ring = (0..slots).map(|_| (f64::NAN, <DepthImage as Zeroed>::zeroed())).collect();
         Ok(CameraSide {
             cfg: *cfg,
@@ -227,24 +233,26 @@ impl CameraSide {
     }
 
     /// The whole camera inline (the in-process lockstep, a lockstep sim): at the world's time
-    /// with the arm at `q`, captures and renders if due, then delivers what is due.
-    /// Allocation-free.
+    /// with the arm at `q`, captures and renders (one frame per camera of the rig) if due,
+    /// then delivers what is due. Allocation-free.
     pub fn tick<E>(
         &mut self,
         side: &mut DebrisSide,
         q: &[f64; NJ],
         snap: &mut Snapshot,
-        renderer: &mut Renderer,
+        renderers: &mut [Renderer],
         send: impl FnMut(&mut DepthImage) -> Result<(), E>,
     ) -> Result<u32, E> {
         let t = side.world().time();
         if self.clock.due(t) {
             self.clock.taken(t);
             snap.take(side, q);
-            if let Some(out) = self.slot() {
-                renderer.render(snap, out);
+            for r in renderers.iter_mut() {
+                if let Some(out) = self.slot() {
+                    r.render(snap, out);
+                }
+                self.captured(t);
             }
-            self.captured(t);
         }
         self.deliver(t, send)
     }

@@ -30,7 +30,7 @@ use crate::debris::DebrisSide;
 pub struct CameraReport {
     pub rate_hz: f64,
     pub stats: CameraStats,
-    /// Wall time to render one frame, µs.
+    /// Wall time to render one capture (every camera of the rig), µs.
     pub render_us: Percentiles,
 }
 
@@ -54,7 +54,7 @@ pub enum SimCamera {
     /// Lockstep: inline (the port is dropped before its node).
     Inline {
         side: CameraSide,
-        renderer: Renderer,
+        renderers: Vec<Renderer>,
         snap: Box<Snapshot>,
         publ: Pub<DepthImage>,
         bus: Bus,
@@ -72,13 +72,13 @@ impl SimCamera {
         let cfg = sc.camera;
         let base = sc.debris.base_lvlh;
         let side = CameraSide::new(&cfg)?;
-        let renderer = Renderer::new(&cfg, base)?;
+        let renderers = Renderer::rig(&cfg, base)?;
         if sc.run.mode == Mode::Lockstep {
             let bus = Bus::new(run, "sim-camera").map_err(|e| e.to_string())?;
             let publ = bus.publisher::<DepthImage>(Source::Sim).map_err(|e| e.to_string())?;
             return Ok(Some(SimCamera::Inline {
                 side,
-                renderer,
+                renderers,
                 snap: Box::default(),
                 publ,
                 bus,
@@ -91,7 +91,7 @@ impl SimCamera {
         let (mb, pn, st, run) = (mailbox.clone(), plant_ns.clone(), stop.clone(), run.to_string());
         let handle = std::thread::Builder::new()
             .name("sim-camera".into())
-            .spawn(move || camera_thread(&run, side, renderer, mb, pn, st))
+            .spawn(move || camera_thread(&run, side, renderers, mb, pn, st))
             .map_err(|e| format!("sim: camera thread: {e}"))?;
         Ok(Some(SimCamera::Thread { clock: CaptureClock::new(cfg.rate_hz), mailbox, plant_ns, stop, handle }))
     }
@@ -111,10 +111,10 @@ impl SimCamera {
                 }
                 Ok(())
             }
-            SimCamera::Inline { side, renderer, snap, publ, render, .. } => {
+            SimCamera::Inline { side, renderers, snap, publ, render, .. } => {
                 let t0 = mono_ns();
                 let due = side.clock.due(t);
-                side.tick(debris, q, snap, renderer, |m| publ.publish(m).map(|_| ()))
+                side.tick(debris, q, snap, renderers, |m| publ.publish(m).map(|_| ()))
                     .map_err(|e| e.to_string())?;
                 if due {
                     render.record_ns(mono_ns().saturating_sub(t0));
@@ -152,7 +152,7 @@ impl SimCamera {
 fn camera_thread(
     run: &str,
     mut side: CameraSide,
-    mut renderer: Renderer,
+    mut renderers: Vec<Renderer>,
     mailbox: Arc<Mutex<Mailbox>>,
     plant_ns: Arc<AtomicU64>,
     stop: Arc<AtomicBool>,
@@ -175,10 +175,12 @@ fn camera_thread(
         };
         if fresh {
             let t0 = mono_ns();
-            if let Some(out) = side.slot() {
-                renderer.render(&snap, out);
+            for r in renderers.iter_mut() {
+                if let Some(out) = side.slot() {
+                    r.render(&snap, out);
+                }
+                side.captured(snap.t_s);
             }
-            side.captured(snap.t_s);
             render.record_ns(mono_ns().saturating_sub(t0));
         }
         let now = plant_ns.load(Ordering::Acquire) as f64 * 1e-9;

@@ -136,7 +136,7 @@ fn frames_come_on_the_plant_clock_after_the_latency_and_the_tick_allocates_nothi
     let mut tick = |side: &mut DebrisSide, cs: &mut CameraSide, got: &mut Vec<(u64, f64)>| {
         side.step(1e-3);
         let t = side.world().time();
-        cs.tick::<()>(side, &Q, &mut snap, &mut renderer, |m| {
+        cs.tick::<()>(side, &Q, &mut snap, std::slice::from_mut(&mut renderer), |m| {
             got.push((m.header.stamp_ns, t));
             Ok(())
         })

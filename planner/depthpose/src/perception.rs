@@ -20,6 +20,8 @@
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
+//! * **Rigs**: an object several cameras see in one capture (frames with the same stamp) is
+//!   reported once, from the first frame that shows it.
 //!
 //! Allocation-free after construction.
 
@@ -35,6 +37,10 @@ pub enum Class {
     Bulky,
 }
 
+/// The default [`DepthPerception::margin_m`]: about twice the median position error of its
+/// observations in `dkrrt predict-eval`'s depth view (3–9 cm), m.
+pub const DEFAULT_MARGIN_M: f64 = 0.15;
+
 /// Objects remembered (the oldest seen is forgotten first).
 pub const MAX_KNOWN: usize = 128;
 
@@ -45,6 +51,9 @@ struct Known {
     spread: [f64; 3],
     q: [f64; 4],
     last_frame: u64,
+    /// Capture time of its last report, ns: another camera's frame of the same capture does
+    /// not report it again.
+    last_t_ns: u64,
 }
 
 /// Counters.
@@ -55,6 +64,8 @@ pub struct PerceptionStats {
     pub objects: u64,
     /// Instances beyond the 32 items of one observation frame (not reported).
     pub dropped: u64,
+    /// Objects another camera of the rig already reported for the same capture (not again).
+    pub repeats: u64,
 }
 
 /// The front end (per-object memory and the extractor's buffers).
@@ -62,6 +73,9 @@ pub struct DepthPerception {
     extractor: Extractor,
     est: Box<[PoseEstimate; DEPTH_MAX_INSTANCES]>,
     known: heapless::Vec<Known, MAX_KNOWN>,
+    /// Grown onto every estimated shape (each side): what the front end's pose and extent
+    /// errors may hide, m.
+    pub margin_m: f64,
     pub stats: PerceptionStats,
 }
 
@@ -79,6 +93,7 @@ impl Default for DepthPerception {
             extractor: Extractor::default(),
             est: Box::new([zero; DEPTH_MAX_INSTANCES]),
             known: heapless::Vec::new(),
+            margin_m: DEFAULT_MARGIN_M,
             stats: PerceptionStats::default(),
         }
     }
@@ -96,19 +111,20 @@ pub fn classify(s: &[f64; 3]) -> Class {
 }
 
 /// The shape of class `c` with largest spreads `s`, and its bounding radius.
-pub fn shape_of(c: Class, s: &[f64; 3]) -> (DebrisShape, f64) {
+pub fn shape_of(c: Class, s: &[f64; 3], margin: f64) -> (DebrisShape, f64) {
     let r3 = 3f64.sqrt();
+    let m = margin;
     match c {
         Class::Rod => {
-            let (h, r) = (r3 * s[0], (2.0 * s[1]).max(0.02));
+            let (h, r) = (r3 * s[0], (2.0 * s[1]).max(0.02) + m);
             (DebrisShape::capsule(h, r), h + r)
         }
         Class::Panel => {
-            let e = [r3 * s[0], r3 * s[1], (r3 * s[2]).max(0.01)];
+            let e = [r3 * s[0] + m, r3 * s[1] + m, (r3 * s[2]).max(0.01) + m];
             (DebrisShape::cuboid(e, [0.0; 3]), (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
         }
         Class::Bulky => {
-            let r = (2.0 * s[0]).max(0.01);
+            let r = (2.0 * s[0]).max(0.01) + m;
             (DebrisShape::sphere(r), r)
         }
     }
@@ -144,12 +160,17 @@ impl DepthPerception {
             let id = img.ids[k - 1];
             let slot = self.slot(id);
             let kn = &mut self.known[slot];
+            if kn.last_frame > 0 && kn.last_t_ns == img.header.stamp_ns {
+                self.stats.repeats += 1;
+                continue;
+            }
+            kn.last_t_ns = img.header.stamp_ns;
             for i in 0..3 {
                 kn.spread[i] = kn.spread[i].max(e.spread[i]);
             }
             kn.last_frame = frame;
             let class = classify(&kn.spread);
-            let (shape, radius) = shape_of(class, &kn.spread);
+            let (shape, radius) = shape_of(class, &kn.spread, self.margin_m);
             let mut p = e.centroid;
             if class == Class::Bulky {
                 let ray: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
@@ -186,7 +207,7 @@ impl DepthPerception {
         if let Some(i) = self.known.iter().position(|k| k.id == id) {
             return i;
         }
-        let fresh = Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0 };
+        let fresh = Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0, last_t_ns: 0 };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
         }

@@ -31,9 +31,9 @@ fn angle_sign_free(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos()
 }
 
-fn render(objects: &[dkrrt_camera::scene::Object], cfg: &CameraConfig) -> Box<DepthImage> {
+fn render(objects: &[dkrrt_camera::scene::Object], cfg: &CameraConfig, t_s: f64) -> Box<DepthImage> {
     let mut snap = Snapshot::default();
-    snap.t_s = 1.25;
+    snap.t_s = t_s;
     for o in objects {
         let _ = snap.objects.push(o.clone());
     }
@@ -48,7 +48,7 @@ fn objects_are_recovered_from_a_rendered_frame() {
     let (mut rods, mut rods_ok, mut panels, mut panels_ok, mut balls, mut balls_ok) = (0, 0, 0, 0, 0, 0);
     for seed in 1..=6u64 {
         let objects = objects_ahead(12, seed);
-        let img = render(&objects, &exact());
+        let img = render(&objects, &exact(), 1.25);
         let mut per = DepthPerception::default();
         let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
         let n = per.convert(&img, &mut out);
@@ -112,7 +112,7 @@ fn a_turning_rod_keeps_a_continuous_attitude_and_the_conversion_allocates_nothin
         let th = 0.05 * k as f64;
         objects[1].3 = [th.cos(), th.sin(), 0.0, 0.0];
         objects[1].2 = [4.0, 0.3, 0.2];
-        imgs.push(render(&objects, &cfg));
+        imgs.push(render(&objects, &cfg, 0.05 * k as f64));
     }
     let (_, stats) = count(|| {
         for img in &imgs {
@@ -132,4 +132,23 @@ fn a_turning_rod_keeps_a_continuous_attitude_and_the_conversion_allocates_nothin
     let th: f64 = 0.05 * 39.0;
     let truth = rot_z(&[th.cos(), th.sin(), 0.0, 0.0]);
     assert!(angle_sign_free(&last, &truth) < 0.05, "{last:?} vs {truth:?}");
+}
+
+/// A rig's cameras deliver frames of one capture (one stamp): an object they both show is
+/// reported once, from the first.
+#[test]
+fn an_object_two_cameras_see_in_one_capture_is_reported_once() {
+    let objects = objects_ahead(6, 5);
+    let a = render(&objects, &exact(), 2.0);
+    // A second camera a little to the side, the same capture.
+    let b = render(&objects, &CameraConfig { position_m: [0.0, 0.3, 0.0], ..exact() }, 2.0);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let n = per.convert(&a, &mut out);
+    assert!(n >= 4);
+    assert_eq!(per.convert(&b, &mut out), 0, "all already reported for this capture");
+    assert_eq!(per.stats.repeats as usize, n);
+    // The next capture reports them again.
+    let c = render(&objects, &exact(), 2.05);
+    assert_eq!(per.convert(&c, &mut out), n);
 }

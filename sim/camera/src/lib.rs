@@ -51,6 +51,9 @@ pub struct CameraConfig {
     pub rate_hz: f64,
     /// Time from capture to delivery, s (the frame is stamped with its capture time).
     pub latency_s: f64,
+    /// Cameras: 1 (this one), or 6 at `position_m` looking along ±x, ±y, ±z of the frame
+    /// (a cube rig; `orientation` is then ignored; use a field of view of at least 90°).
+    pub faces: u32,
     /// Image size, pixels (≤ [`MAX_WIDTH`] × [`MAX_HEIGHT`]).
     pub width: u32,
     pub height: u32,
@@ -80,6 +83,7 @@ impl Default for CameraConfig {
             enabled: false,
             rate_hz: 20.0,
             latency_s: 0.03,
+            faces: 1,
             width: MAX_WIDTH as u32,
             height: MAX_HEIGHT as u32,
             fov_y_rad: 60f64.to_radians(),
@@ -99,6 +103,46 @@ impl Default for CameraConfig {
 /// the image).
 pub const LOOK_ALONG_X: [f64; 4] = [0.5, -0.5, 0.5, -0.5];
 
+impl CameraConfig {
+    /// The cameras this configuration stands for: itself (`faces = 1`), or the six of a cube
+    /// rig at its position (`faces = 6`; seeds `seed + k`).
+    pub fn rig(&self) -> Vec<CameraConfig> {
+        if self.faces != 6 {
+            return vec![*self];
+        }
+        // LOOK_ALONG_X turned about z by 0, 90°, 180°, −90° (along +x, +y, −x, −y, frame z
+        // up in the images), and about y by −90°, 90° (along +z, −z).
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let turns = [
+            [1.0, 0.0, 0.0, 0.0],
+            [h, 0.0, 0.0, h],
+            [0.0, 0.0, 0.0, 1.0],
+            [h, 0.0, 0.0, -h],
+            [h, 0.0, -h, 0.0],
+            [h, 0.0, h, 0.0],
+        ];
+        turns
+            .iter()
+            .enumerate()
+            .map(|(k, t)| CameraConfig {
+                faces: 1,
+                orientation: quat_mul(t, &LOOK_ALONG_X),
+                seed: self.seed + k as u64,
+                ..*self
+            })
+            .collect()
+    }
+}
+
+fn quat_mul(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
 /// A configuration value out of its range (the field is named as in the scenario).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("camera.{field} = {value}: {reason}")]
@@ -117,6 +161,9 @@ impl CameraConfig {
         }
         if !(0.0..1.0).contains(&self.latency_s) {
             return fail("latency_s", self.latency_s, "must be within [0, 1) s");
+        }
+        if self.faces != 1 && self.faces != 6 {
+            return fail("faces", self.faces as f64, "must be 1 or 6 (a cube rig)");
         }
         if self.width == 0 || self.width as usize > MAX_WIDTH {
             return fail("width", self.width as f64, "must be 1..=128");

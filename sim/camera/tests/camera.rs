@@ -251,3 +251,45 @@ fn rendering_allocates_nothing() {
     assert_eq!((s.allocs, s.reallocs), (0, 0), "{s:?}");
     assert!(frame.count(ARM) > 0 && frame.count(BACKGROUND) < 128 * 96);
 }
+
+/// A cube rig: six cameras at one point whose optical axes are ±x, ±y, ±z, every one a
+/// proper rotation; together they see a ball in every direction.
+#[test]
+fn a_cube_rig_looks_along_every_axis() {
+    let base = CameraConfig { faces: 6, fov_y_rad: std::f64::consts::FRAC_PI_2, ..exact() };
+    base.validate().unwrap();
+    let rig = base.rig();
+    assert_eq!(rig.len(), 6);
+    let mut axes = Vec::new();
+    for c in &rig {
+        let cam = Camera::new(*c).unwrap();
+        let r = cam.rotation();
+        let z = [r[0][2], r[1][2], r[2][2]];
+        axes.push(z.map(|v| v.round() as i32));
+        // Proper rotation: columns orthonormal, determinant +1.
+        let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+            - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+        assert!((det - 1.0).abs() < 1e-9);
+    }
+    axes.sort();
+    assert_eq!(axes, vec![[-1, 0, 0], [0, -1, 0], [0, 0, -1], [0, 0, 1], [0, 1, 0], [1, 0, 0]]);
+    let ball = SharedShape::ball(0.3);
+    for dir in [[4.0, 0.0, 0.0], [0.0, -4.0, 0.0], [0.0, 0.0, 4.0], [-2.5, 2.5, 1.0]] {
+        let t = [Target { id: 1, shape: ball.as_ref(), p: dir, q: [1.0, 0.0, 0.0, 0.0], bound: 0.3 }];
+        let seen: usize = rig
+            .iter()
+            .map(|c| {
+                let mut f = DepthFrame::default();
+                Camera::new(*c).unwrap().render(&t, &[], &mut f);
+                f.count(1)
+            })
+            .sum();
+        assert!(seen > 20, "a ball at {dir:?}: {seen} pixels");
+    }
+    assert!(CameraConfig { faces: 2, ..exact() }
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .starts_with("camera.faces"));
+}
