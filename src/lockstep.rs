@@ -123,9 +123,6 @@ pub struct CameraLoop {
     pub side: dkrrt_sim::camera::CameraSide,
     renderers: Vec<dkrrt_sim::camera::Renderer>,
     snap: Box<dkrrt_sim::camera::Snapshot>,
-    perception: dkrrt_depthpose::perception::DepthPerception,
-    /// The front end's observations of the frame delivered last.
-    frame: Box<DebrisObservation>,
     /// The predictor reads the camera, not the pose sensor.
     feeds_predictor: bool,
 }
@@ -237,8 +234,6 @@ impl Lockstep {
                 side: dkrrt_sim::camera::CameraSide::new(&sc.camera)?,
                 renderers: dkrrt_sim::camera::Renderer::rig(&sc.camera, sc.debris.base_lvlh)?,
                 snap: Box::default(),
-                perception: Default::default(),
-                frame: Box::new(<DebrisObservation as Zeroed>::zeroed()),
                 feeds_predictor: sc.depth_input(),
             })
         } else {
@@ -394,12 +389,10 @@ impl Lockstep {
         if let (Some(c), Some(side)) = (self.camera.as_mut(), self.sim.debris.as_mut()) {
             let q: [f64; NJ] = self.sim.plant.true_state().0.into();
             let pred = &mut self.predictor;
-            let CameraLoop { side: cam, renderers, snap, perception, frame, feeds_predictor } = c;
+            let CameraLoop { side: cam, renderers, snap, feeds_predictor } = c;
             let _ = cam.tick::<()>(side, &q, snap, renderers, |img| {
                 let Some(p) = pred.as_mut().filter(|_| *feeds_predictor) else { return Ok(()) };
-                perception.convert(img, frame);
-                frame.header = img.header;
-                let n = p.core.observe_then_forecast(frame, &p.lim, p.rate_hz, &mut p.forecast);
+                let n = p.core.observe_depth_then_forecast(img, &p.lim, p.rate_hz, &mut p.forecast);
                 if n > 0 {
                     p.forecasts += 1;
                     p.tracks = n as u32;

@@ -182,6 +182,10 @@ pub struct PredictorCore {
     /// `rrt-static`: every step of a forecast is the track's latest estimated pose, with no
     /// uncertainty (the planner adds its margin): no prediction.
     hold_still: bool,
+    /// `predictor.input = "depth"`: the front end that turns depth frames into observation
+    /// frames, and the frame it fills.
+    perception: dkrrt_depthpose::perception::DepthPerception,
+    seen: Option<Box<DebrisObservation>>,
 }
 
 impl PredictorCore {
@@ -200,6 +204,8 @@ impl PredictorCore {
             counters: ObsCounters::default(),
             next_due_s: 0.0,
             hold_still: sc.forecasts() == dkrrt_config::Forecasts::Static,
+            perception: Default::default(),
+            seen: Some(Box::new(<DebrisObservation as dkrrt_msg::Zeroed>::zeroed())),
         }
     }
 
@@ -278,6 +284,55 @@ impl PredictorCore {
         } else {
             0
         }
+    }
+
+    /// Feeds one depth camera frame (`predictor.input = "depth"`): the front end
+    /// (`dkrrt_depthpose::perception`) makes it an observation frame measured at its capture
+    /// (the header its own), which goes the way of a sensor's frame. A bad image is rejected
+    /// whole and counted (`frames_rejected`). Allocation-free.
+    pub fn observe_depth(&mut self, img: &dkrrt_msg::DepthImage, lim: &ContractLimits) {
+        if !self.depth_valid(img, lim) {
+            return;
+        }
+        let seen = self.see(img);
+        self.observe_frame(&seen, lim);
+        self.seen = Some(seen);
+    }
+
+    /// [`PredictorCore::observe_then_forecast`] for a depth frame (the lockstep cadence).
+    pub fn observe_depth_then_forecast(
+        &mut self,
+        img: &dkrrt_msg::DepthImage,
+        lim: &ContractLimits,
+        rate_hz: f64,
+        msg: &mut DebrisForecast,
+    ) -> usize {
+        if !self.depth_valid(img, lim) {
+            return 0;
+        }
+        let seen = self.see(img);
+        let n = self.observe_then_forecast(&seen, lim, rate_hz, msg);
+        self.seen = Some(seen);
+        n
+    }
+
+    /// Checks a depth frame against the contract; a bad one is counted as a rejected frame.
+    fn depth_valid(&mut self, img: &dkrrt_msg::DepthImage, lim: &ContractLimits) -> bool {
+        use dkrrt_msg::Validate;
+        if img.validate(lim).is_ok() {
+            return true;
+        }
+        self.counters.frames += 1;
+        self.counters.frames_rejected += 1;
+        false
+    }
+
+    /// The observation frame of a depth frame (the core's own buffer, handed back after use).
+    fn see(&mut self, img: &dkrrt_msg::DepthImage) -> Box<DebrisObservation> {
+        let mut seen = self.seen.take().expect("the depth buffer is back after each use");
+        self.perception.convert(img, &mut seen);
+        seen.header = img.header;
+        seen
     }
 
     fn set_shape(&mut self, id: u32, r: f64, shape: DebrisShape) {

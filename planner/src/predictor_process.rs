@@ -67,8 +67,6 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         true => Some(bus.subscriber::<DepthImage>().map_err(|e| e.to_string())?),
         false => None,
     };
-    let mut perception = dkrrt_depthpose::perception::DepthPerception::default();
-    let mut seen = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut fc_pub = bus.publisher::<DebrisForecast>(Source::Predictor).map_err(|e| e.to_string())?;
     let mut prog_pub = bus.publisher::<PredictorProgress>(Source::Predictor).map_err(|e| e.to_string())?;
@@ -123,7 +121,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
                     |m| m.validate(&lim),
                     |img| {
                         newest = Some(img.header);
-                        core.observe_frame(see(&mut perception, &mut seen, img), &lim)
+                        core.observe_depth(img, &lim)
                     },
                 ),
                 None => obs_sub.for_each_checked(
@@ -142,21 +140,31 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             }
         } else {
             let rate_hz = sc.predictor.rate_hz;
-            let mut step = |f: &DebrisObservation, h: Header| {
-                newest = Some(h);
-                let t0 = mono_ns();
-                let n = core.observe_then_forecast(f, &lim, rate_hz, &mut msg);
-                if n > 0 {
-                    let t = core.newest_t;
-                    publish(&mut msg, n, t0, t);
-                }
-            };
+            let mut step =
+                |core: &mut PredictorCore,
+                 h: Header,
+                 observe: &dyn Fn(&mut PredictorCore, &mut DebrisForecast) -> usize| {
+                    newest = Some(h);
+                    let t0 = mono_ns();
+                    let n = observe(core, &mut msg);
+                    if n > 0 {
+                        let t = core.newest_t;
+                        publish(&mut msg, n, t0, t);
+                    }
+                };
             match img_sub.as_mut() {
                 Some(s) => s.for_each_checked(
                     |m| m.validate(&lim),
-                    |img| step(see(&mut perception, &mut seen, img), img.header),
+                    |img| {
+                        step(&mut core, img.header, &|c, m| {
+                            c.observe_depth_then_forecast(img, &lim, rate_hz, m)
+                        })
+                    },
                 ),
-                None => obs_sub.for_each_checked(|_| Ok(()), |f| step(f, f.header)),
+                None => obs_sub.for_each_checked(
+                    |_| Ok(()),
+                    |f| step(&mut core, f.header, &|c, m| c.observe_then_forecast(f, &lim, rate_hz, m)),
+                ),
             }
             .map_err(|e| e.to_string())?;
         }
@@ -201,16 +209,4 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     };
     dkrrt_rt::write_stats("predictor", stats_path, &report)?;
     Ok(report)
-}
-
-/// A depth frame as the observation frame its objects make (measured at its capture; the
-/// header its own), to go the way of a sensor's frame.
-fn see<'a>(
-    perception: &mut dkrrt_depthpose::perception::DepthPerception,
-    seen: &'a mut DebrisObservation,
-    img: &DepthImage,
-) -> &'a DebrisObservation {
-    perception.convert(img, seen);
-    seen.header = img.header;
-    seen
 }

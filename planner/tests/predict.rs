@@ -206,3 +206,45 @@ fn rrt_static_holds_the_latest_estimate_with_no_uncertainty() {
     }
     msg.validate(&lim()).unwrap();
 }
+
+/// Depth frames reach the predictor through the core's front end: a frame's objects become
+/// tracks; a bad frame is rejected whole and counted, and loses nothing else.
+#[test]
+fn depth_frames_make_tracks_and_a_bad_one_is_rejected_and_counted() {
+    let mut sc = scenario("sparse-slow", "constant-velocity");
+    sc.predictor.input = "depth".into();
+    sc.camera.faces = 6;
+    sc.camera.fov_y_rad = std::f64::consts::FRAC_PI_2;
+    sc.camera.position_m = [-0.7, 1.3, -0.4]; // at the LVLH origin
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let model = dkrrt_model::ArmModel::default_arm();
+    let mut side = DebrisSide::new(&sc, &model).unwrap();
+    let mut cam = dkrrt_sim::camera::CameraSide::new(&sc.camera).unwrap();
+    let mut renderers = dkrrt_sim::camera::Renderer::rig(&sc.camera, sc.debris.base_lvlh).unwrap();
+    let mut snap = Box::<dkrrt_sim::camera::Snapshot>::default();
+    let l = ContractLimits { debris_range_m: 100.0, ..lim() };
+    let q = [0.0; dkrrt_model::NJ];
+    let mut last = Box::new(<dkrrt_msg::DepthImage as Zeroed>::zeroed());
+    for _ in 0..1500 {
+        side.step(1e-3);
+        cam.tick::<()>(&mut side, &q, &mut snap, &mut renderers, |img| {
+            core.observe_depth(img, &l);
+            *last = *img;
+            Ok(())
+        })
+        .unwrap();
+    }
+    let c = core.counters;
+    assert_eq!(c.frames, cam.stats.delivered);
+    assert_eq!(c.frames_rejected, 0);
+    let objects = side.world().debris().len() as u64;
+    assert!(core.gate().tracks_created >= objects.min(3), "{:?} of {objects}", core.gate());
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    assert!(core.forecast_into(&mut msg) >= 3);
+    // A pixel labelled with an instance the frame does not have: the whole frame is refused.
+    last.instance[10] = (last.n_instances + 1) as u8;
+    let before = core.gate().accepted;
+    core.observe_depth(&last, &l);
+    assert_eq!((core.counters.frames, core.counters.frames_rejected), (c.frames + 1, 1));
+    assert_eq!(core.gate().accepted, before);
+}

@@ -499,7 +499,8 @@ pub fn run_study_views(
                 let sc = perturbed_scene(scene, s, cfg.perturbation)?;
                 let (rec, e) = (v.record)(&sc, s, cfg.duration, cfg.sim_dt)?;
                 recs.push(rec);
-                (ep.push(e[0]), ea.push(e[1]));
+                ep.push(e[0]);
+                ea.push(e[1]);
             }
             seen.push((
                 v.method,
