@@ -40,8 +40,8 @@ pub struct Intrinsics {
     pub rotation: [[f64; 3]; 3],
 }
 
-/// The estimate for one instance.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The estimate for one instance (`Default`: none, all zero).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PoseEstimate {
     /// The instance value in the frame.
     pub instance: u8,

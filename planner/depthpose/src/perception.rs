@@ -81,17 +81,9 @@ pub struct DepthPerception {
 
 impl Default for DepthPerception {
     fn default() -> Self {
-        let zero = PoseEstimate {
-            instance: 0,
-            points: 0,
-            centroid: [0.0; 3],
-            covariance: [[0.0; 3]; 3],
-            axes: [[0.0; 3]; 3],
-            spread: [0.0; 3],
-        };
         DepthPerception {
             extractor: Extractor::default(),
-            est: Box::new([zero; DEPTH_MAX_INSTANCES]),
+            est: Box::new([PoseEstimate::default(); DEPTH_MAX_INSTANCES]),
             known: heapless::Vec::new(),
             margin_m: DEFAULT_MARGIN_M,
             stats: PerceptionStats::default(),

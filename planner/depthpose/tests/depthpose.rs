@@ -51,14 +51,7 @@ fn estimate(cfg: CameraConfig, targets: &[Target]) -> Vec<PoseEstimate> {
     let mut cam = Camera::new(cfg).unwrap();
     let mut frame = DepthFrame::default();
     cam.render(targets, &[], &mut frame);
-    let mut out = [PoseEstimate {
-        instance: 0,
-        points: 0,
-        centroid: [0.0; 3],
-        covariance: [[0.0; 3]; 3],
-        axes: [[0.0; 3]; 3],
-        spread: [0.0; 3],
-    }; 8];
+    let mut out = [PoseEstimate::default(); 8];
     let n = Extractor::default().extract(&intrinsics(&cam), &frame.depth_m, &frame.instance, &mut out);
     out[..n].to_vec()
 }
