@@ -20,6 +20,10 @@
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
+//! * **Partial views** are not reported: a view whose longest spread is under [`PART`] of
+//!   the longest seen of that object (cut by the frame, hidden in part by another object or
+//!   the arm, a rod end-on) would put its centre off, and the predictor's position bound
+//!   would grow on the jumps; the predictor coasts through them.
 //! * **Rigs**: an object several cameras see in one capture (frames with the same stamp) is
 //!   reported once, from the first frame that shows it.
 //!
@@ -40,6 +44,10 @@ pub enum Class {
 /// The default [`DepthPerception::margin_m`]: about twice the median position error of its
 /// observations in `dkrrt predict-eval`'s depth view (3–9 cm), m.
 pub const DEFAULT_MARGIN_M: f64 = 0.15;
+
+/// A view whose longest spread is under this share of the longest seen shows the object in
+/// part (cut by the frame, hidden in part, or end-on): its centre would be off.
+pub const PART: f64 = 0.75;
 
 /// Objects remembered (the oldest seen is forgotten first).
 pub const MAX_KNOWN: usize = 128;
@@ -66,6 +74,8 @@ pub struct PerceptionStats {
     pub dropped: u64,
     /// Objects another camera of the rig already reported for the same capture (not again).
     pub repeats: u64,
+    /// Objects seen in part (their longest extent shorter than seen before): not reported.
+    pub partial: u64,
 }
 
 /// The front end (per-object memory and the extractor's buffers).
@@ -159,6 +169,12 @@ impl DepthPerception {
             kn.last_t_ns = img.header.stamp_ns;
             for i in 0..3 {
                 kn.spread[i] = kn.spread[i].max(e.spread[i]);
+            }
+            if e.spread[0] < PART * kn.spread[0] {
+                // Seen in part: its centre would be off (the predictor coasts meanwhile).
+                kn.last_frame = frame;
+                self.stats.partial += 1;
+                continue;
             }
             kn.last_frame = frame;
             let class = classify(&kn.spread);

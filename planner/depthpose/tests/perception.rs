@@ -101,7 +101,8 @@ fn objects_are_recovered_from_a_rendered_frame() {
 /// never jumps (its sign-free axis is made continuous; its unobservable spin is not made up).
 #[test]
 fn a_turning_rod_keeps_a_continuous_attitude_and_the_conversion_allocates_nothing() {
-    let mut objects = objects_ahead(2, 3);
+    // The rod alone (another object passing in front would hide it in part: not reported).
+    let mut objects = vec![objects_ahead(2, 3)[1].clone()];
     let cfg = exact();
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
@@ -110,8 +111,8 @@ fn a_turning_rod_keeps_a_continuous_attitude_and_the_conversion_allocates_nothin
     for k in 0..40 {
         // Turn the rod (object 2) by 0.1 rad per frame about the base x axis.
         let th = 0.05 * k as f64;
-        objects[1].3 = [th.cos(), th.sin(), 0.0, 0.0];
-        objects[1].2 = [4.0, 0.3, 0.2];
+        objects[0].3 = [th.cos(), th.sin(), 0.0, 0.0];
+        objects[0].2 = [4.0, 0.3, 0.2];
         imgs.push(render(&objects, &cfg, 0.05 * k as f64));
     }
     let (_, stats) = count(|| {
@@ -151,4 +152,28 @@ fn an_object_two_cameras_see_in_one_capture_is_reported_once() {
     // The next capture reports them again.
     let c = render(&objects, &exact(), 2.05);
     assert_eq!(per.convert(&c, &mut out), n);
+}
+
+/// An object seen whole, then half hidden behind another, then whole again: the half view is
+/// not reported (its centre would be off), the whole ones are.
+#[test]
+fn a_partial_view_is_not_reported() {
+    use parry3d_f64::shape::SharedShape;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // A 1.8 m rod along y, 4 m ahead; a panel that can hide its +y half.
+    let rod = (7, SharedShape::capsule_z(0.9, 0.03), [4.0, 0.0, 0.0], [h, -h, 0.0, 0.0], 0.93);
+    let panel = (8, SharedShape::cuboid(0.05, 0.6, 0.6), [3.0, 0.65, 0.0], [1.0, 0.0, 0.0, 0.0], 0.85);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let reported = |per: &mut DepthPerception, out: &mut DebrisObservation, objs: &[_], t: f64| {
+        let n = per.convert(&render(objs, &exact(), t), out);
+        out.items[..n].iter().any(|it| it.id == 7)
+    };
+    assert!(reported(&mut per, &mut out, &[rod.clone()], 1.0));
+    assert!(!reported(&mut per, &mut out, &[rod.clone(), panel.clone()], 1.1), "a half view is not reported");
+    assert_eq!(per.stats.partial, 1);
+    assert!(reported(&mut per, &mut out, &[rod.clone()], 1.2));
+    // Seen half hidden from the start, it is reported (nothing larger was seen yet).
+    let mut fresh = DepthPerception::default();
+    assert!(reported(&mut fresh, &mut out, &[rod, panel], 1.0));
 }
