@@ -31,6 +31,8 @@
 
 use dkrrt_msg::{DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEPTH_MAX_INSTANCES, MAX_DEBRIS};
 
+use dkrrt_collision::pose::{quat_mul as mul, rotation_matrix as rotation};
+
 use crate::{Extractor, Intrinsics, PoseEstimate};
 
 /// What an object looks like to the front end.
@@ -59,8 +61,8 @@ struct Known {
     spread: [f64; 3],
     q: [f64; 4],
     last_frame: u64,
-    /// Capture time of its last report, ns: another camera's frame of the same capture does
-    /// not report it again.
+    /// Capture time of its last report, ns (`u64::MAX`: none): another camera's frame of the
+    /// same capture does not report it again.
     last_t_ns: u64,
 }
 
@@ -162,21 +164,21 @@ impl DepthPerception {
             let id = img.ids[k - 1];
             let slot = self.slot(id);
             let kn = &mut self.known[slot];
-            if kn.last_frame > 0 && kn.last_t_ns == img.header.stamp_ns {
+            if kn.last_t_ns == img.header.stamp_ns {
                 self.stats.repeats += 1;
                 continue;
             }
-            kn.last_t_ns = img.header.stamp_ns;
             for i in 0..3 {
                 kn.spread[i] = kn.spread[i].max(e.spread[i]);
             }
+            kn.last_frame = frame;
             if e.spread[0] < PART * kn.spread[0] {
-                // Seen in part: its centre would be off (the predictor coasts meanwhile).
-                kn.last_frame = frame;
+                // Seen in part: its centre would be off (the predictor coasts meanwhile). Another
+                // camera of the same capture may still report it whole.
                 self.stats.partial += 1;
                 continue;
             }
-            kn.last_frame = frame;
+            kn.last_t_ns = img.header.stamp_ns;
             let class = classify(&kn.spread);
             let (shape, radius) = shape_of(class, &kn.spread, self.margin_m);
             let mut p = e.centroid;
@@ -215,7 +217,8 @@ impl DepthPerception {
         if let Some(i) = self.known.iter().position(|k| k.id == id) {
             return i;
         }
-        let fresh = Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0, last_t_ns: 0 };
+        let fresh =
+            Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0, last_t_ns: u64::MAX };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
         }
@@ -237,16 +240,6 @@ pub fn intrinsics(img: &DepthImage) -> Intrinsics {
         position: img.position_m,
         rotation: rotation(&img.orientation),
     }
-}
-
-/// Rotation matrix (rows) of a unit quaternion (w, x, y, z).
-fn rotation(q: &[f64; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = *q;
-    [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
-    ]
 }
 
 /// The unit quaternion (w ≥ 0 not enforced) of the rotation whose columns are `c`.
@@ -305,15 +298,6 @@ fn rod_attitude(prev: &[f64; 4], a: &[f64; 3]) -> [f64; 4] {
     let q = mul(&swing, prev);
     let n = norm4(&q);
     q.map(|v| v / n)
-}
-
-fn mul(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
 }
 
 fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {

@@ -173,6 +173,10 @@ fn a_partial_view_is_not_reported() {
     assert!(!reported(&mut per, &mut out, &[rod.clone(), panel.clone()], 1.1), "a half view is not reported");
     assert_eq!(per.stats.partial, 1);
     assert!(reported(&mut per, &mut out, &[rod.clone()], 1.2));
+    // A rig: one camera sees it half hidden, another of the same capture whole: the whole
+    // view is reported (the half view does not claim the capture).
+    assert!(!reported(&mut per, &mut out, &[rod.clone(), panel.clone()], 1.3));
+    assert!(reported(&mut per, &mut out, &[rod.clone()], 1.3));
     // Seen half hidden from the start, it is reported (nothing larger was seen yet).
     let mut fresh = DepthPerception::default();
     assert!(reported(&mut fresh, &mut out, &[rod, panel], 1.0));

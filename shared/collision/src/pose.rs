@@ -15,6 +15,28 @@ pub fn quat_rotate(q: &[f64; 4], v: &[f64; 3]) -> [f64; 3] {
     ]
 }
 
+/// The product `a ⊗ b` (the rotation `b`, then `a`).
+#[inline]
+pub fn quat_mul(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
+    [
+        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
+    ]
+}
+
+/// The rotation matrix (rows) of the quaternion `q` (normalised first).
+pub fn rotation_matrix(q: &[f64; 4]) -> [[f64; 3]; 3] {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    [
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+    ]
+}
+
 /// Rotation angle between two unit quaternions, rad (in [0, π]).
 #[inline]
 pub fn quat_angle(a: &[f64; 4], b: &[f64; 4]) -> f64 {

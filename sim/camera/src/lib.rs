@@ -22,6 +22,7 @@
 
 pub mod scene;
 
+use dkrrt_collision::pose::{quat_mul, rotation_matrix as rotation};
 use dkrrt_collision::PosedCapsule;
 use parry3d_f64::glamx::DQuat;
 use parry3d_f64::math::{Pose, Vector as PVec};
@@ -132,15 +133,6 @@ impl CameraConfig {
             })
             .collect()
     }
-}
-
-fn quat_mul(a: &[f64; 4], b: &[f64; 4]) -> [f64; 4] {
-    [
-        a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-        a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-        a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-        a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-    ]
 }
 
 /// A configuration value out of its range (the field is named as in the scenario).
@@ -459,16 +451,6 @@ impl Camera {
         }
         (i0 as usize, (i1 as usize).min(n))
     }
-}
-
-fn rotation(q: &[f64; 4]) -> [[f64; 3]; 3] {
-    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
-    [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
-    ]
 }
 
 fn mat_vec(m: &[[f64; 3]; 3], v: &[f64; 3]) -> [f64; 3] {
