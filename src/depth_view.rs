@@ -32,7 +32,8 @@ fn view_err(detail: impl ToString) -> EvalError {
 }
 
 /// The run of `scene` (seed `seed`) as [`record`] simulates it, observed by the `cams` rig
-/// through the depth front end; with the medians of the observations' position error (m)
+/// through the depth front end `front_end()` makes (classical, or with the learned axis
+/// model); with the medians of the observations' position error (m)
 /// and body z axis error (rods' axes and panels' normals, sign-free; rad).
 pub fn record_depth(
     scene: &Scene,
@@ -40,6 +41,7 @@ pub fn record_depth(
     duration: f64,
     sim_dt: f64,
     cams: &[CameraConfig],
+    front_end: &dyn Fn() -> DepthPerception,
 ) -> Result<(Recording, [f64; 2]), EvalError> {
     // The truth (and true shapes, for the containment measure) of the same run.
     let mut rec = record(scene, SensorConfig::default(), duration, sim_dt, seed)?;
@@ -52,7 +54,7 @@ pub fn record_depth(
     let mut snap = Box::<Snapshot>::default();
     let mut img = Box::new(<DepthImage as Zeroed>::zeroed());
     let mut frame = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut per = DepthPerception::default();
+    let mut per = front_end();
     let mut obs = Vec::new();
     let (mut ep, mut ea) = (Vec::new(), Vec::new());
     let steps = (duration / sim_dt).round() as usize;

@@ -18,3 +18,4 @@ pub mod study;
 pub mod study_report;
 pub mod train;
 pub mod verdict;
+pub mod visual_train;

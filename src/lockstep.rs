@@ -216,7 +216,7 @@ impl Lockstep {
         let predictor = match (sc.has_debris() && !oracle_wanted, models) {
             (false, _) => None,
             (true, Some(m)) => Some(PredictorLoop {
-                core: PredictorCore::new(m, sc),
+                core: PredictorCore::for_scenario(m, sc)?,
                 forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
                 forecasts: 0,
                 tracks: 0,

@@ -200,9 +200,14 @@ enum Cmd {
     },
     /// Train the Deep Koopman debris model on simulated debris-world data (or recorded observations) and save the model file.
     Train {
-        /// Model file to write (format: planner/deep/README.md).
-        #[arg(long, default_value = "deep-attitude.dkm")]
-        out: PathBuf,
+        /// Model file to write (default: deep-attitude.dkm; with --visual, visual.dkv; formats:
+        /// planner/deep/README.md, planner/visual/src/file.rs).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Train the learned visual features f_θ on depth-camera views (Algorithm 1) instead
+        /// of the deep attitude model.
+        #[arg(long, conflicts_with_all = ["observations", "json"])]
+        visual: bool,
         /// Seconds-scale training (tiny network, little data) for smoke tests.
         #[arg(long)]
         quick: bool,
@@ -240,6 +245,10 @@ enum Cmd {
         /// per scene offsets); another seed = another independent set of runs.
         #[arg(long, default_value_t = 7)]
         seed: u64,
+        /// The learned visual features' model file for the depth view read through f_θ
+        /// (default: the shipped one, embedded in the binary; "none": no such view).
+        #[arg(long)]
+        visual_model: Option<String>,
     },
     /// Solve one planning problem (JSON file, format: docs/planning-problem.md) and print the plan.
     Plan {
@@ -315,7 +324,8 @@ enum Cmd {
         #[arg(long)]
         episodes: Option<u64>,
         /// Comma-separated methods (default: all six): straight, rrt-static, cv-rrt, edmd-rrt,
-        /// dk-rrt, oracle-rrt; and dk-rrt-depth (dk-rrt seeing through the depth camera).
+        /// dk-rrt, oracle-rrt; and dk-rrt-depth (dk-rrt seeing through the depth camera) and
+        /// dk-rrt-visual (the same with the learned visual features f_θ).
         #[arg(
             long,
             value_delimiter = ',',
@@ -476,7 +486,12 @@ fn main() -> ExitCode {
             let sc = scenario(&p.common)?;
             dkrrt_planner::predictor_process::run(&p.run, &sc, p.stats.as_deref()).map(|_| true)
         }
-        Cmd::Train { out, quick, epochs, json, observations, scenario } => {
+        Cmd::Train { out, visual: true, quick, epochs, .. } => {
+            dkrrt::visual_train::train_visual(&out.unwrap_or_else(|| "visual.dkv".into()), quick, epochs)
+                .map(|_| true)
+        }
+        Cmd::Train { out, quick, epochs, json, observations, scenario, .. } => {
+            let out = out.unwrap_or_else(|| "deep-attitude.dkm".into());
             let recorded = match observations {
                 Some(files) => Some((files, Scenario::load(&scenario).map_err(|e| e.to_string())?)),
                 None => None,
@@ -512,9 +527,17 @@ fn main() -> ExitCode {
             );
             Ok(true)
         }
-        Cmd::PredictEval { json, size, model, scenes, methods, seed } => {
-            dkrrt::train::predict_eval(&size, model.as_deref(), scenes, methods, seed, json.as_deref())
-                .map(|_| true)
+        Cmd::PredictEval { json, size, model, scenes, methods, seed, visual_model } => {
+            dkrrt::train::predict_eval(
+                &size,
+                model.as_deref(),
+                scenes,
+                methods,
+                seed,
+                json.as_deref(),
+                visual_model.as_deref(),
+            )
+            .map(|_| true)
         }
         Cmd::Study { scenes, size, episodes, methods, seed, json, out, threads, goal, train_deep } => {
             let scenes =

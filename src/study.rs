@@ -288,12 +288,19 @@ pub fn fit_methods(
 /// seeing the debris through the sim's depth camera (`predictor.input = "depth"`, the
 /// scenario's `[camera]`) instead of the pose sensor. Not in the default method list.
 pub const DK_RRT_DEPTH: &str = "dk-rrt-depth";
+/// [`DK_RRT_DEPTH`] with the learned front end (the shipped visual features f_θ read each
+/// object's axes and class, `predictor.front_end = "learned"`). Not in the default list.
+pub const DK_RRT_VISUAL: &str = "dk-rrt-visual";
 
-/// Sets the scenario of a study method: a planning method, or [`DK_RRT_DEPTH`].
+/// Sets the scenario of a study method: a planning method, [`DK_RRT_DEPTH`] or
+/// [`DK_RRT_VISUAL`].
 pub fn set_method(sc: &mut Scenario, method: &str) {
-    if method == DK_RRT_DEPTH {
+    if method == DK_RRT_DEPTH || method == DK_RRT_VISUAL {
         sc.planner.method = "dk-rrt".into();
         sc.predictor.input = "depth".into();
+        if method == DK_RRT_VISUAL {
+            sc.predictor.front_end = "learned".into();
+        }
     } else {
         sc.planner.method = method.to_string();
     }
@@ -311,9 +318,9 @@ pub fn run(
         }
     }
     for m in &opts.methods {
-        if !PLANNER_METHODS.contains(&m.as_str()) && m != DK_RRT_DEPTH {
+        if !PLANNER_METHODS.contains(&m.as_str()) && m != DK_RRT_DEPTH && m != DK_RRT_VISUAL {
             return Err(format!(
-                "--methods: unknown method {m:?} ({}, {DK_RRT_DEPTH})",
+                "--methods: unknown method {m:?} ({}, {DK_RRT_DEPTH}, {DK_RRT_VISUAL})",
                 PLANNER_METHODS.join(", ")
             ));
         }

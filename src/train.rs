@@ -10,7 +10,8 @@ use dkrrt_predictor::recorded::{read_observations, train_from_observations};
 use dkrrt_predictor::training::{train_models, TrainOptions, TrainedModels};
 use dkrrt_predictor::Method;
 
-fn progress_bar(p: &Progress) {
+/// The training progress bar on stderr (deep and visual training).
+pub fn progress_bar(p: &Progress) {
     let width = 30;
     let done = (p.epoch * width / p.epochs.max(1)).min(width);
     let eta = if p.epoch > 0 { p.elapsed_s / p.epoch as f64 * (p.epochs - p.epoch) as f64 } else { 0.0 };
@@ -152,6 +153,7 @@ pub fn predict_eval(
     methods: Option<Vec<String>>,
     seed: u64,
     json: Option<&Path>,
+    visual_model: Option<&str>,
 ) -> Result<(), String> {
     let mut cfg = match size {
         "small" => StudyConfig::small(),
@@ -198,21 +200,39 @@ pub fn predict_eval(
     };
     let t = std::time::Instant::now();
     // The depth camera's view of the same held-out runs, for the planner's predictor (issue
-    // #15): the cube rig of the default camera through the classical front end.
+    // #15): the cube rig of the default camera through the classical front end, and through
+    // the front end whose attitudes the learned visual features f_θ read (when the shipped
+    // visual model is there).
     let rig = crate::depth_view::cube_rig(&dkrrt_config::Scenario::default_scenario().camera);
+    let classical = || dkrrt_depthpose::perception::DepthPerception::default();
     let rec = |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
-        crate::depth_view::record_depth(sc, seed, dur, dt, &rig)
+        crate::depth_view::record_depth(sc, seed, dur, dt, &rig, &classical)
+    };
+    let visual = match visual_model {
+        Some("none") => None,
+        Some(p) => Some(dkrrt_visual::file::load(Path::new(p))?),
+        None => Some(dkrrt_planner::predict::embedded_visual()?),
+    };
+    let learned = || match &visual {
+        Some(net) => dkrrt_depthpose::perception::DepthPerception::with_model(Box::new(
+            dkrrt_visual::LearnedAxes::new(net.clone()),
+        )),
+        None => dkrrt_depthpose::perception::DepthPerception::default(),
+    };
+    let rec_visual = |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
+        crate::depth_view::record_depth(sc, seed, dur, dt, &rig, &learned)
     };
     let mut depth_pred = cfg.predictor;
     depth_pred.filter.pos_sigma = depth_pred.filter.pos_sigma.max(dkrrt_planner::predict::DEPTH_POS_SIGMA_M);
     depth_pred.filter.att_sigma =
         depth_pred.filter.att_sigma.max(dkrrt_planner::predict::DEPTH_ATT_SIGMA_RAD);
-    let views: Vec<View> = cfg
-        .methods
-        .iter()
-        .filter(|m| **m == Method::DeepKoopmanOnline)
-        .map(|&method| View { name: "depth", method, predictor: depth_pred, record: &rec })
-        .collect();
+    let mut views: Vec<View> = Vec::new();
+    for &method in cfg.methods.iter().filter(|m| **m == Method::DeepKoopmanOnline) {
+        views.push(View { name: "depth", method, predictor: depth_pred, record: &rec });
+        if visual.is_some() {
+            views.push(View { name: "visual", method, predictor: depth_pred, record: &rec_visual });
+        }
+    }
     let rows = run_study_views(&cfg, deep.as_ref(), &views).map_err(|e| e.to_string())?;
     println!("{}", markdown_table(&rows));
     println!(

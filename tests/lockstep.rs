@@ -128,4 +128,28 @@ fn the_predictor_can_see_through_the_depth_camera() {
     let c = dkrrt::lockstep::run(&poses).unwrap();
     assert!(c.camera.is_none());
     assert_eq!(c.predictor.unwrap().observations.frames, c.debris.unwrap().observation_frames);
+    assert_eq!(p.observations.learned_views, 0, "the classical front end");
+}
+
+/// `predictor.front_end = "learned"`: the shipped visual features f_θ read the camera's views
+/// of the objects (every view large enough), the run reaches its goal without contact; a bad
+/// model file is refused naming the field and the file.
+#[test]
+fn the_learned_front_end_reads_the_camera_views_through_f_theta() {
+    let mut sc = Scenario::default_scenario();
+    sc.predictor.input = "depth".into();
+    sc.predictor.front_end = "learned".into();
+    let a = dkrrt::lockstep::run(&sc).unwrap();
+    let p = a.predictor.unwrap();
+    assert!(p.observations.learned_views > 20, "{:?}", p.observations);
+    assert!(p.observations.learned_views <= p.observations.items);
+    assert!(!a.debris.unwrap().collided() && a.goal_reached_s.is_some());
+    let dir = std::env::temp_dir().join(format!("dkrrt-lockstep-visual-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.dkv"), b"DKRRTVIS and then nothing").unwrap();
+    sc.predictor.visual_model = "bad.dkv".into();
+    sc.base_dir = Some(dir.clone());
+    let e = dkrrt::lockstep::run(&sc).err().expect("a bad model file");
+    assert!(e.contains("predictor.visual_model") && e.contains("bad.dkv"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

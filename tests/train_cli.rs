@@ -15,6 +15,46 @@ fn small_study(methods: &str) -> Command {
     c
 }
 
+/// `dkrrt train --visual --quick`: f_θ trained on depth views (Algorithm 1) with a progress
+/// bar and the validation per horizon, saved as a model file that `predict-eval` reads; a
+/// corrupt one is refused naming the file and the field.
+#[test]
+fn train_visual_writes_a_model_that_predict_eval_reads() {
+    let dir = std::env::temp_dir().join(format!("dkrrt-train-visual-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("v.dkv");
+    let out =
+        Command::new(exe()).args(["train", "--visual", "--quick", "--out"]).arg(&model).output().unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    assert!(stderr.contains("epoch   2/2"), "progress bar: {stderr}");
+    assert!(stdout.contains("training views") && stdout.contains("other runs per scene"), "{stdout}");
+    assert!(stdout.contains("per horizon") && stdout.contains("  4: "), "{stdout}");
+    assert_eq!(&std::fs::read(&model).unwrap()[..8], b"DKRRTVIS");
+    let rows = dir.join("rows.json");
+    let out = small_study("deep-koopman-online")
+        .arg("--visual-model")
+        .arg(&model)
+        .arg("--json")
+        .arg(&rows)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&rows).unwrap()).unwrap();
+    assert_eq!(rows.iter().filter(|r| r["method"] == "deep-koopman-online+visual").count(), 4);
+    let mut bytes = std::fs::read(&model).unwrap();
+    bytes[30] ^= 1;
+    std::fs::write(&model, &bytes).unwrap();
+    let out = small_study("deep-koopman-online").arg("--visual-model").arg(&model).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("v.dkv") && e.contains("checksum"), "{e}");
+    // --visual-model none: no learned view.
+    let out = small_study("deep-koopman-online").args(["--visual-model", "none"]).output().unwrap();
+    assert!(out.status.success() && !String::from_utf8_lossy(&out.stdout).contains("+visual"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
     let dir = std::env::temp_dir().join(format!("dkrrt-train-cli-{}", std::process::id()));
@@ -50,20 +90,23 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&rows_path).unwrap()).unwrap();
-    // ... and the depth camera's view of the same runs for the planner's predictor (issue #15),
-    // with its observations' own errors.
-    assert_eq!(rows.len(), (3 + 1) * 4);
-    let depth: Vec<_> = rows.iter().filter(|r| r["method"] == "deep-koopman-online+depth").collect();
-    assert_eq!(depth.len(), 4);
-    for r in depth {
-        let (p, a) = (r["obs_pos_err_m"].as_f64().unwrap(), r["obs_axis_err_rad"].as_f64().unwrap());
-        assert!(p > 0.0 && p < 0.3 && a >= 0.0 && a < 0.5, "{r}");
-        assert!(r["pos_err_m"].as_f64().unwrap() < 1.0, "{r}");
+    // ... and the depth camera's views of the same runs for the planner's predictor (issue #15):
+    // the classical front end and the learned one (the shipped f_θ), with their observations'
+    // own errors.
+    assert_eq!(rows.len(), (3 + 2) * 4);
+    let camera = |r: &&serde_json::Value| r["method"].as_str().unwrap().contains('+');
+    for view in ["deep-koopman-online+depth", "deep-koopman-online+visual"] {
+        let rs: Vec<_> = rows.iter().filter(|r| r["method"] == view).collect();
+        assert_eq!(rs.len(), 4, "{view}");
+        for r in rs {
+            let (p, a) = (r["obs_pos_err_m"].as_f64().unwrap(), r["obs_axis_err_rad"].as_f64().unwrap());
+            assert!(p > 0.0 && p < 0.3 && a >= 0.0 && a < 0.5, "{r}");
+            assert!(r["pos_err_m"].as_f64().unwrap() < 1.0, "{r}");
+            let (full, sym) = (r["att_err_rad"].as_f64().unwrap(), r["att_sym_err_rad"].as_f64().unwrap());
+            assert!(sym <= full + 1e-9, "modulo the shapes' symmetry no larger: {r}");
+        }
     }
-    assert!(rows
-        .iter()
-        .filter(|r| r["method"] != "deep-koopman-online+depth")
-        .all(|r| r.get("obs_pos_err_m").is_none()));
+    assert!(rows.iter().filter(|r| !camera(r)).all(|r| r.get("obs_pos_err_m").is_none()));
     // The printed target check is the ratio of the JSON rows (EDMD / deep at 2 s).
     let att = |m: &str| {
         let r = rows.iter().find(|r| r["method"] == m && r["horizon_s"] == 2.0).unwrap();

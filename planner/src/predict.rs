@@ -13,6 +13,7 @@ use dkrrt_collision::bounds::{attitude_channel, surface_sigma, AttitudeChannel};
 use dkrrt_collision::interpolate_pose;
 use dkrrt_config::Scenario;
 use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
+use dkrrt_depthpose::perception::DepthPerception;
 use dkrrt_msg::{
     ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
     FORECAST_STEPS, MAX_DEBRIS,
@@ -31,6 +32,14 @@ pub const FIT_RUN_S: f64 = 20.0;
 /// The deep attitude model shipped in the binary (`models/deep-attitude.dkm`, written by
 /// `dkrrt train` with its default options); used when `predictor.model` is `""`.
 pub const EMBEDDED_MODEL: &[u8] = include_bytes!("../../models/deep-attitude.dkm");
+
+/// The shipped learned visual features f_θ (`dkrrt train --visual`), embedded in the binary.
+pub const EMBEDDED_VISUAL: &[u8] = include_bytes!("../../models/visual.dkv");
+
+/// The embedded visual model.
+pub fn embedded_visual() -> Result<dkrrt_visual::VisualNet, String> {
+    dkrrt_visual::file::from_bytes(EMBEDDED_VISUAL).map_err(|e| format!("embedded visual model: {e}"))
+}
 
 /// The scenario's trained deep model: the file of `predictor.model`, or the embedded one.
 /// Errors name the field and what is wrong with the file (format, version, checksum, ...).
@@ -60,6 +69,8 @@ pub struct ObsCounters {
     pub items_invalid: u64,
     /// Items rejected by the predictor's gate (impossible jumps, out of order, table full, ...).
     pub items_gated: u64,
+    /// Depth frames: object views the learned front end's f_θ read (0 with the classical one).
+    pub learned_views: u64,
 }
 
 impl ObsCounters {
@@ -184,7 +195,7 @@ pub struct PredictorCore {
     hold_still: bool,
     /// `predictor.input = "depth"`: the front end that turns depth frames into observation
     /// frames, and the frame it fills.
-    perception: dkrrt_depthpose::perception::DepthPerception,
+    perception: DepthPerception,
     seen: Option<Box<DebrisObservation>>,
 }
 
@@ -207,6 +218,26 @@ impl PredictorCore {
             perception: Default::default(),
             seen: Some(Box::new(<DebrisObservation as dkrrt_msg::Zeroed>::zeroed())),
         }
+    }
+
+    /// A core for the scenario: [`new`](Self::new) with the depth front end the scenario names
+    /// (`predictor.front_end`: the learned one reads `predictor.visual_model` or the shipped
+    /// model; a bad file is an error naming the field and the file).
+    pub fn for_scenario(models: Models, sc: &Scenario) -> Result<PredictorCore, String> {
+        let mut core = PredictorCore::new(models, sc);
+        if sc.learned_front_end() {
+            let net = match sc.visual_model_path() {
+                Some(p) => dkrrt_visual::file::load(&p).map_err(|e| format!("predictor.visual_model {e}"))?,
+                None => embedded_visual()?,
+            };
+            core.perception = DepthPerception::with_model(Box::new(dkrrt_visual::LearnedAxes::new(net)));
+        }
+        Ok(core)
+    }
+
+    /// Whether the depth front end reads attitudes with the learned features f_θ.
+    pub fn learned_front_end(&self) -> bool {
+        self.perception.learned()
     }
 
     /// The predictor (statistics, tracks).
@@ -331,6 +362,7 @@ impl PredictorCore {
     fn see(&mut self, img: &dkrrt_msg::DepthImage) -> Box<DebrisObservation> {
         let mut seen = self.seen.take().expect("the depth buffer is back after each use");
         self.perception.convert(img, &mut seen);
+        self.counters.learned_views = self.perception.stats.learned;
         seen.header = img.header;
         seen
     }

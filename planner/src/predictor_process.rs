@@ -57,12 +57,18 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
     let models = fit_models(sc)?;
     let fit_s = (mono_ns() - t_fit) as f64 * 1e-9;
     eprintln!("predictor: {} models fitted in {fit_s:.2} s", sc.predictor_method());
-    let mut core = PredictorCore::new(models, sc);
+    let mut core = PredictorCore::for_scenario(models, sc)?;
+    if sc.depth_input() {
+        eprintln!(
+            "predictor: depth front end {}",
+            if core.learned_front_end() { "learned (f_θ)" } else { "classical" }
+        );
+    }
 
     let bus = Bus::new(run, "predictor").map_err(|e| e.to_string())?;
     let mut obs_sub = bus.subscriber::<DebrisObservation>().map_err(|e| e.to_string())?;
-    // `predictor.input = "depth"`: the depth camera's frames, through the classical front end,
-    // in place of the pose sensor's observations.
+    // `predictor.input = "depth"`: the depth camera's frames, through the front end
+    // (`predictor.front_end`: classical or learned), in place of the pose sensor's observations.
     let mut img_sub = match sc.depth_input() {
         true => Some(bus.subscriber::<DepthImage>().map_err(|e| e.to_string())?),
         false => None,

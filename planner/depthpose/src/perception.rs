@@ -26,6 +26,12 @@
 //!   would grow on the jumps; the predictor coasts through them.
 //! * **Rigs**: an object several cameras see in one capture (frames with the same stamp) is
 //!   reported once, from the first frame that shows it.
+//! * **A learned axis model** ([`DepthPerception::with_model`], the visual features f_θ of
+//!   `dkrrt-visual`): the attitude and the class come from the axes the model reads from the
+//!   view instead: a box (long and short axis seen: body x along the long axis, body z along
+//!   the short one, a cuboid from the spreads), a rod (long axis only: body z, a capsule), a
+//!   disc (short axis only: body z, a square cuboid) or bulky (neither: attitude held, a
+//!   sphere). The class is the model's majority over the views so far.
 //!
 //! Allocation-free after construction.
 
@@ -34,6 +40,39 @@ use dkrrt_msg::{DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEPTH_MAX
 use dkrrt_collision::pose::{quat_mul as mul, rotation_matrix as rotation};
 
 use crate::{Extractor, Intrinsics, PoseEstimate};
+
+/// Sign-free axes a learned model reads from one view of an object, in the camera's frame
+/// (`Intrinsics::rotation` applied).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SeenAxes {
+    /// The longest body axis, when the view shows one (a rod's axis, a box's long side).
+    pub long: Option<[f64; 3]>,
+    /// The shortest body axis, when the view shows one (a panel's or a box's normal).
+    pub short: Option<[f64; 3]>,
+}
+
+/// Reads an object's axes from a view (the learned visual features f_θ).
+pub trait AxisModel: Send {
+    /// The axes of instance `e.instance` (object `id`) of `img`.
+    fn axes(&mut self, img: &DepthImage, cam: &Intrinsics, e: &PoseEstimate, id: u32) -> SeenAxes;
+    /// The fewest valid pixels of a view the model reads (smaller views are outside what it
+    /// learned from).
+    fn min_points(&self) -> usize;
+}
+
+/// A principal axis of a view's points is defined when its spread and its neighbour's differ
+/// by this factor.
+pub const PCA_DEFINED: f64 = 1.3;
+
+/// An object whose second largest spread is under this share of its largest is a rod for
+/// the learned path too.
+pub const THIN: f64 = 6.0;
+
+/// An object has a long axis when at least this share of its views so far showed one…
+pub const LONG_SHARE: f64 = 0.4;
+/// … and a short axis when at least this share did (a view can hide an axis a shape has: a
+/// box end-on, a panel edge-on; one it lacks shows in few views).
+pub const SHORT_SHARE: f64 = 0.25;
 
 /// What an object looks like to the front end.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,6 +99,8 @@ struct Known {
     /// Largest spread seen along each principal axis (by rank), m.
     spread: [f64; 3],
     q: [f64; 4],
+    /// Views the learned model read, and those that showed a long / a short axis.
+    votes: [u32; 3],
     last_frame: u64,
     /// Capture time of its last report, ns (`u64::MAX`: none): another camera's frame of the
     /// same capture does not report it again.
@@ -78,6 +119,8 @@ pub struct PerceptionStats {
     pub repeats: u64,
     /// Objects seen in part (their longest extent shorter than seen before): not reported.
     pub partial: u64,
+    /// Views the learned axis model read.
+    pub learned: u64,
 }
 
 /// The front end (per-object memory and the extractor's buffers).
@@ -89,6 +132,7 @@ pub struct DepthPerception {
     /// errors may hide, m.
     pub margin_m: f64,
     pub stats: PerceptionStats,
+    model: Option<Box<dyn AxisModel>>,
 }
 
 impl Default for DepthPerception {
@@ -99,6 +143,7 @@ impl Default for DepthPerception {
             known: heapless::Vec::new(),
             margin_m: DEFAULT_MARGIN_M,
             stats: PerceptionStats::default(),
+            model: None,
         }
     }
 }
@@ -135,6 +180,16 @@ pub fn shape_of(c: Class, s: &[f64; 3], margin: f64) -> (DebrisShape, f64) {
 }
 
 impl DepthPerception {
+    /// The front end with a learned axis model for attitudes and classes.
+    pub fn with_model(model: Box<dyn AxisModel>) -> Self {
+        DepthPerception { model: Some(model), ..Self::default() }
+    }
+
+    /// Whether a learned axis model reads the attitudes.
+    pub fn learned(&self) -> bool {
+        self.model.is_some()
+    }
+
     /// Converts `img` into `out`: one item per object with enough valid pixels (at most
     /// [`MAX_DEBRIS`], in instance order; more are counted as dropped), measured at the capture time
     /// (`header.stamp_ns`), poses in the base frame. `out.header` is left to the caller (the
@@ -179,20 +234,68 @@ impl DepthPerception {
                 continue;
             }
             kn.last_t_ns = img.header.stamp_ns;
-            let class = classify(&kn.spread);
-            let (shape, radius) = shape_of(class, &kn.spread, self.margin_m);
+            let classical = classify(&kn.spread);
+            let (shape, radius);
+            // The model reads views as large as those it learned from; the class of an object it
+            // has read is the model's, its attitude from the model's axes or, in a smaller view,
+            // from the points' axes.
+            let mut seen = SeenAxes::default();
+            if let Some(model) = self.model.as_mut().filter(|m| e.points >= m.min_points()) {
+                seen = model.axes(img, &cam, &e, id);
+                self.stats.learned += 1;
+                kn.votes[0] += 1;
+                kn.votes[1] += seen.long.is_some() as u32;
+                kn.votes[2] += seen.short.is_some() as u32;
+            }
+            if kn.votes[0] > 0 {
+                let sp = &kn.spread;
+                let share = |k: usize| kn.votes[k] as f64 / kn.votes[0] as f64;
+                // A thin object is a rod whatever the model reads: its cross-section spans a
+                // few cells of the model's crop at most, so a strip and a rod look alike.
+                let thin = sp[0] > THIN * sp[1];
+                let (long, short) = (thin || share(1) >= LONG_SHARE, !thin && share(2) >= SHORT_SHARE);
+                (shape, radius) = match (long, short) {
+                    (true, true) => shape_of(Class::Panel, sp, self.margin_m),
+                    (true, false) => shape_of(Class::Rod, sp, self.margin_m),
+                    (false, true) => shape_of(Class::Panel, &[sp[0], sp[0], sp[2]], self.margin_m),
+                    (false, false) => shape_of(Class::Bulky, sp, self.margin_m),
+                };
+                // An axis the model did not read in this view: the points' principal axis,
+                // where they define it.
+                let defined = |i: usize, j: usize| e.spread[i.min(j)] > PCA_DEFINED * e.spread[i.max(j)];
+                let seen = SeenAxes {
+                    long: seen.long.or_else(|| defined(0, 1).then_some(e.axes[0])),
+                    short: seen.short.or_else(|| defined(1, 2).then_some(e.axes[2])),
+                };
+                kn.q = match (long, short, seen.long, seen.short) {
+                    (true, true, Some(a), Some(c)) => {
+                        // Body z along the short axis made normal to the long one (body x).
+                        let d = a[0] * c[0] + a[1] * c[1] + a[2] * c[2];
+                        let z = unit(&std::array::from_fn(|i| c[i] - d * a[i]));
+                        nearest_frame(&kn.q, &a, &cross(&z, &a))
+                    }
+                    // A box seen with one axis: that body axis turned onto it.
+                    (true, true, Some(a), None) => align(&kn.q, 0, &a),
+                    (true, true, None, Some(c)) => align(&kn.q, 2, &c),
+                    (true, false, Some(a), _) => align(&kn.q, 2, &a),
+                    (false, true, _, Some(c)) => align(&kn.q, 2, &c),
+                    _ => kn.q,
+                };
+            } else {
+                (shape, radius) = shape_of(classical, &kn.spread, self.margin_m);
+                kn.q = match classical {
+                    Class::Rod => rod_attitude(&kn.q, &e.axes[0]),
+                    Class::Panel => nearest_frame(&kn.q, &e.axes[0], &e.axes[1]),
+                    Class::Bulky => kn.q,
+                };
+            }
             let mut p = e.centroid;
-            if class == Class::Bulky {
+            if classical == Class::Bulky {
                 let ray: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
                 let l = norm(&ray).max(1e-9);
                 let back = 2.83 * e.spread[2];
                 p = std::array::from_fn(|i| p[i] + ray[i] / l * back);
             }
-            kn.q = match class {
-                Class::Rod => rod_attitude(&kn.q, &e.axes[0]),
-                Class::Panel => nearest_frame(&kn.q, &e.axes[0], &e.axes[1]),
-                Class::Bulky => kn.q,
-            };
             out.items[count] = DebrisObs {
                 id,
                 flags: 0,
@@ -217,8 +320,14 @@ impl DepthPerception {
         if let Some(i) = self.known.iter().position(|k| k.id == id) {
             return i;
         }
-        let fresh =
-            Known { id, spread: [0.0; 3], q: [1.0, 0.0, 0.0, 0.0], last_frame: 0, last_t_ns: u64::MAX };
+        let fresh = Known {
+            id,
+            spread: [0.0; 3],
+            q: [1.0, 0.0, 0.0, 0.0],
+            votes: [0; 3],
+            last_frame: 0,
+            last_t_ns: u64::MAX,
+        };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
         }
@@ -288,8 +397,14 @@ fn nearest_frame(prev: &[f64; 4], a0: &[f64; 3], a1: &[f64; 3]) -> [f64; 4] {
 /// A rod's attitude: `prev` turned by the smallest rotation that takes its body z onto the
 /// axis `a` (the sign of `a` nearest that z).
 fn rod_attitude(prev: &[f64; 4], a: &[f64; 3]) -> [f64; 4] {
+    align(prev, 2, a)
+}
+
+/// `prev` turned by the smallest rotation that takes its body axis `i` onto the axis `a` (the
+/// sign of `a` nearest that body axis).
+fn align(prev: &[f64; 4], i: usize, a: &[f64; 3]) -> [f64; 4] {
     let r = rotation(prev);
-    let z = [r[0][2], r[1][2], r[2][2]];
+    let z = [r[0][i], r[1][i], r[2][i]];
     let a = if a[0] * z[0] + a[1] * z[1] + a[2] * z[2] < 0.0 { a.map(|v| -v) } else { *a };
     let c = cross(&z, &a);
     let swing = [1.0 + z[0] * a[0] + z[1] * a[1] + z[2] * a[2], c[0], c[1], c[2]];
@@ -302,6 +417,11 @@ fn rod_attitude(prev: &[f64; 4], a: &[f64; 3]) -> [f64; 4] {
 
 fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn unit(a: &[f64; 3]) -> [f64; 3] {
+    let n = norm(a).max(1e-12);
+    a.map(|v| v / n)
 }
 
 fn norm(a: &[f64; 3]) -> f64 {

@@ -64,6 +64,7 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         horizon_s: h,
         pos_err_m: pos,
         att_err_rad: att,
+        att_sym_err_rad: att,
         n: 100,
         contained: 1.0,
         bound_m: 0.1,
@@ -179,4 +180,36 @@ mod dual_ridge {
         // Methods without a dual-data model report none.
         assert!(Models::fit(Method::EdmdPoly, &drag, &cfg).unwrap().dual_ridge[0].is_nan());
     }
+}
+
+/// The attitude error modulo a shape's symmetry: what no camera can tell apart costs nothing.
+#[test]
+fn the_symmetric_attitude_error_ignores_what_the_shape_cannot_show() {
+    use dkrrt_msg::DebrisShape;
+    use dkrrt_predictor::eval::symmetric_angle;
+    let about = |axis: [f64; 3], a: f64| {
+        let s = (a / 2.0).sin();
+        [(a / 2.0).cos(), axis[0] * s, axis[1] * s, axis[2] * s]
+    };
+    let t = about([0.6, 0.0, 0.8], 0.9);
+    let mul = dkrrt_collision::pose::quat_mul;
+    let pi = std::f64::consts::PI;
+    // A ball: nothing. A rod: its spin and its end-for-end turn cost nothing; a tilt does.
+    assert_eq!(symmetric_angle(&about([1.0, 0.0, 0.0], 2.0), &t, &DebrisShape::sphere(0.3)), 0.0);
+    let rod = DebrisShape::capsule(0.5, 0.05);
+    assert!(symmetric_angle(&mul(&t, &about([0.0, 0.0, 1.0], 2.5)), &t, &rod) < 1e-9);
+    assert!(symmetric_angle(&mul(&t, &about([1.0, 0.0, 0.0], pi)), &t, &rod) < 1e-9);
+    assert!((symmetric_angle(&mul(&t, &about([1.0, 0.0, 0.0], 0.2)), &t, &rod) - 0.2).abs() < 1e-9);
+    // A box: its half turns cost nothing, a quarter turn does unless two sides are equal.
+    let slab = DebrisShape::cuboid([0.6, 0.15, 0.05], [0.0; 3]);
+    for axis in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+        assert!(symmetric_angle(&mul(&t, &about(axis, pi)), &t, &slab) < 1e-9);
+    }
+    let quarter = mul(&t, &about([0.0, 0.0, 1.0], pi / 2.0));
+    assert!((symmetric_angle(&quarter, &t, &slab) - pi / 2.0).abs() < 1e-9);
+    let square = DebrisShape::cuboid([0.5, 0.5, 0.005], [0.0; 3]);
+    assert!(symmetric_angle(&quarter, &t, &square) < 1e-9);
+    // The full angle bounds it.
+    let q = about([0.3, -0.4, 0.5], 1.3);
+    assert!(symmetric_angle(&q, &t, &slab) <= dkrrt_predictor::filter::quat_angle(&q, &t) + 1e-12);
 }

@@ -483,10 +483,23 @@ pub struct PredictorCfg {
     /// front end `dkrrt_depthpose::perception`; turns the camera on).
     #[serde(default = "poses_input")]
     pub input: String,
+    /// With `input = "depth"`, the front end: `classical` (the points' principal axes) or
+    /// `learned` (the learned visual features f_θ of `dkrrt train --visual` read each object's
+    /// axes and class).
+    #[serde(default = "classical_front_end")]
+    pub front_end: String,
+    /// The learned front end's model file (`dkrrt train --visual`), relative to the scenario
+    /// file; `""` = the shipped one (embedded in the binary).
+    #[serde(default)]
+    pub visual_model: String,
 }
 
 fn poses_input() -> String {
     "poses".into()
+}
+
+fn classical_front_end() -> String {
+    "classical".into()
 }
 
 fn scene_fit() -> String {
@@ -674,14 +687,7 @@ impl Scenario {
     /// The URDF path to load, resolved against the scenario's directory;
     /// `None` for the embedded default arm.
     pub fn urdf_path(&self) -> Option<PathBuf> {
-        if self.robot.urdf.is_empty() {
-            return None;
-        }
-        let p = PathBuf::from(&self.robot.urdf);
-        Some(match (&self.base_dir, p.is_relative()) {
-            (Some(dir), true) => dir.join(p),
-            _ => p,
-        })
+        self.relative_file(&self.robot.urdf)
     }
 
     /// The debris scene path, resolved against the scenario's directory, if
@@ -691,23 +697,35 @@ impl Scenario {
         if !(s.contains('/') || s.ends_with(".toml")) {
             return None;
         }
-        let p = PathBuf::from(s);
+        self.relative_file(s)
+    }
+
+    /// The predictor's model file, resolved against the scenario's directory.
+    pub fn predictor_model_path(&self) -> Option<PathBuf> {
+        self.relative_file(&self.predictor.model)
+    }
+
+    /// The learned front end's model file (`predictor.visual_model`), resolved against the
+    /// scenario's directory; `None`: the shipped one.
+    pub fn visual_model_path(&self) -> Option<PathBuf> {
+        self.relative_file(&self.predictor.visual_model)
+    }
+
+    /// A file named in the scenario, resolved against its directory (`""`: none).
+    fn relative_file(&self, name: &str) -> Option<PathBuf> {
+        if name.is_empty() {
+            return None;
+        }
+        let p = PathBuf::from(name);
         Some(match (&self.base_dir, p.is_relative()) {
             (Some(dir), true) => dir.join(p),
             _ => p,
         })
     }
 
-    /// The predictor's model file, resolved against the scenario's directory.
-    pub fn predictor_model_path(&self) -> Option<PathBuf> {
-        if self.predictor.model.is_empty() {
-            return None;
-        }
-        let p = PathBuf::from(&self.predictor.model);
-        Some(match (&self.base_dir, p.is_relative()) {
-            (Some(dir), true) => dir.join(p),
-            _ => p,
-        })
+    /// Whether the depth front end is the learned one.
+    pub fn learned_front_end(&self) -> bool {
+        self.predictor.front_end == "learned"
     }
 
     /// Whether the run has debris (and so a predictor).
@@ -927,6 +945,13 @@ impl Scenario {
                 "must be \"poses\" or \"depth\"",
             ));
         }
+        if p.front_end != "classical" && p.front_end != "learned" {
+            return Err(c.fail(
+                "predictor.front_end",
+                format!("{:?}", p.front_end),
+                "must be \"classical\" or \"learned\"",
+            ));
+        }
         if p.fit != "scene" && p.fit != "generic" {
             return Err(c.fail("predictor.fit", format!("{:?}", p.fit), "must be \"scene\" or \"generic\""));
         }
@@ -1126,6 +1151,23 @@ mod tests {
         let typo = DEFAULT_SCENARIO.replace("noise_base_m = 0.002", "noise_base = 0.002");
         let e = Scenario::from_toml_str(&typo, "typo.toml").unwrap_err().to_string();
         assert!(e.contains("noise_base") && e.contains("typo.toml"), "{e}");
+    }
+
+    #[test]
+    fn the_depth_front_end_is_read_and_checked_naming_the_field() {
+        let ok = Scenario::from_toml_str(DEFAULT_SCENARIO, "d.toml").unwrap();
+        assert!(!ok.learned_front_end() && ok.visual_model_path().is_none());
+        let text = DEFAULT_SCENARIO
+            .replace("front_end = \"classical\"", "front_end = \"learned\"")
+            .replace("visual_model = \"\"", "visual_model = \"f.dkv\"");
+        let mut s = Scenario::from_toml_str(&text, "d.toml").unwrap();
+        s.base_dir = Some(PathBuf::from("/s"));
+        assert!(s.learned_front_end());
+        assert_eq!(s.visual_model_path().unwrap(), PathBuf::from("/s/f.dkv"));
+        s.validate(&arm()).unwrap();
+        let bad = DEFAULT_SCENARIO.replace("front_end = \"classical\"", "front_end = \"cnn\"");
+        let e = Scenario::from_toml_str(&bad, "bad.toml").unwrap().validate(&arm()).unwrap_err().to_string();
+        assert!(e.contains("predictor.front_end") && e.contains("cnn"), "{e}");
     }
 
     #[test]
