@@ -1,6 +1,6 @@
 //! Learned visual features f_θ (issue #15, the paper's Algorithm 1) for the depth camera.
 //!
-//! * **Input** ([`crop`]): per object, a square crop of the segmented depth image around the
+//! * **Input** ([`FrameScan::crop`]): per object, a square crop of the segmented depth image around the
 //!   object's pixels, resampled to [`CROP`] × [`CROP`] cells, two channels (mask, depth about
 //!   the object's mean depth in units of the crop's width in metres), for the current view and
 //!   the object's previous view from the same camera (so the features can carry motion), plus
@@ -17,7 +17,7 @@
 //!   observables, `Σₖ ‖C Kᵏ ξ̂(τ₀) − y(τ₀ + k)‖²`, through f_θ; `K` is re-solved by least squares
 //!   on all consecutive feature pairs every `M` epochs, and held between.
 //! * **Inference** on fixed arrays ([`VisualNet::forward`]), allocation-free; [`LearnedAxes`]
-//!   is the depth front end's [`AxisModel`](dkrrt_depthpose::perception::AxisModel).
+//!   is the depth front end's [`AxisModel`].
 
 pub mod file;
 pub mod train;

@@ -1,11 +1,11 @@
 //! Training f_θ with candle (CPU, f32): the paper's Algorithm 1.
 //!
 //! * Data: sequences of consecutive views of one object by one camera, each view with its
-//!   true observables ([`targets`](crate::targets)); a view's previous view is the one before it
+//!   true observables ([`crate::targets`]); a view's previous view is the one before it
 //!   in its sequence (the first one's is itself, as at inference when there is none).
 //! * Koopman state `z = [f_θ(view, previous view), 1]` (`P` values). Loss on a window
 //!   `τ₀ … τ₀ + H`: `L = 1/(H+1) Σₖ mean((C Kᵏ z(τ₀) − y(τ₀ + k))²)`, `C` the first
-//!   [`N_OBS`](crate::N_OBS) values: the observables now (k = 0) and predicted ahead.
+//!   [`N_OBS`] values: the observables now (k = 0) and predicted ahead.
 //! * `K` is re-solved by ridge least squares ([`resolve_koopman`], faer's SVD via
 //!   `dkrrt_koopman::linalg::lstsq`) on all consecutive training pairs with the current f_θ
 //!   before the first epoch and every `resolve_every` epochs (`M`), and held between (Adam
