@@ -46,62 +46,80 @@ pub fn record_depth(
     // The truth (and true shapes, for the containment measure) of the same run.
     let mut rec = record(scene, SensorConfig::default(), duration, sim_dt, seed)?;
     let mut world = DebrisWorld::new(scene)?;
-    let mut renderers =
-        cams.iter().map(|c| Renderer::new(c, [0.0; 3])).collect::<Result<Vec<_>, _>>().map_err(view_err)?;
-    let rate = cams.first().ok_or_else(|| view_err("no camera"))?.rate_hz;
-    let latency = cams[0].latency_s;
-    let mut clock = CaptureClock::new(rate);
-    let mut snap = Box::<Snapshot>::default();
-    let mut img = Box::new(<DepthImage as Zeroed>::zeroed());
+    let mut rdr = renderers(cams).map_err(view_err)?;
+    let (rate, latency) = (cams[0].rate_hz, cams[0].latency_s);
     let mut frame = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut per = front_end();
     let mut obs = Vec::new();
     let (mut ep, mut ea) = (Vec::new(), Vec::new());
-    let steps = (duration / sim_dt).round() as usize;
-    let mut seq = 0u32;
-    for k in 0..=steps {
+    each_capture(&mut world, duration, sim_dt, rate, &mut rdr, |capture, t, _, img, _| {
+        let n = per.convert(img, &mut frame);
+        for it in &frame.items[..n] {
+            obs.push(Observation {
+                id: it.id,
+                t,
+                t_avail: t + latency,
+                p: it.p,
+                q: it.q,
+                v: [0.0; 3],
+                w: [0.0; 3],
+                has_rates: false,
+                seq: capture as u32,
+            });
+            if let Some(x) = rec.truth.at(it.id, t) {
+                ep.push(
+                    ((it.p[0] - x[0]).powi(2) + (it.p[1] - x[1]).powi(2) + (it.p[2] - x[2]).powi(2)).sqrt(),
+                );
+                if matches!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Capsule | ShapeKind::Box)) {
+                    let (a, b) = (body_z(&it.q), body_z(&[x[6], x[7], x[8], x[9]]));
+                    ea.push((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos());
+                }
+            }
+        }
+    });
+    rec.obs = obs;
+    let med = |v: &mut Vec<f64>| dkrrt_predictor::eval::median(v);
+    Ok((rec, [med(&mut ep), med(&mut ea)]))
+}
+
+/// One renderer per camera of `cams`, the base at the LVLH origin.
+pub fn renderers(cams: &[CameraConfig]) -> Result<Vec<Renderer>, String> {
+    if cams.is_empty() {
+        return Err("no camera".into());
+    }
+    cams.iter().map(|c| Renderer::new(c, [0.0; 3])).collect()
+}
+
+/// Steps `world` by `dt` for `duration` and renders it with every renderer at `rate_hz`:
+/// `f(capture, t, camera, frame, world)` per camera and capture (captures numbered from 0).
+pub fn each_capture(
+    world: &mut DebrisWorld,
+    duration: f64,
+    dt: f64,
+    rate_hz: f64,
+    renderers: &mut [Renderer],
+    mut f: impl FnMut(u64, f64, usize, &DepthImage, &DebrisWorld),
+) {
+    let mut clock = CaptureClock::new(rate_hz);
+    let mut snap = Box::<Snapshot>::default();
+    let mut img = Box::new(<DepthImage as Zeroed>::zeroed());
+    let mut capture = 0;
+    for k in 0..=(duration / dt).round() as usize {
         if k > 0 {
-            world.step(sim_dt);
+            world.step(dt);
         }
         let t = world.time();
         if !clock.due(t) {
             continue;
         }
         clock.taken(t);
-        snap.of_world(&world);
-        for r in renderers.iter_mut() {
+        snap.of_world(world);
+        for (c, r) in renderers.iter_mut().enumerate() {
             r.render(&snap, &mut img);
-            let n = per.convert(&img, &mut frame);
-            for it in &frame.items[..n] {
-                obs.push(Observation {
-                    id: it.id,
-                    t,
-                    t_avail: t + latency,
-                    p: it.p,
-                    q: it.q,
-                    v: [0.0; 3],
-                    w: [0.0; 3],
-                    has_rates: false,
-                    seq,
-                });
-                if let Some(x) = rec.truth.at(it.id, t) {
-                    ep.push(
-                        ((it.p[0] - x[0]).powi(2) + (it.p[1] - x[1]).powi(2) + (it.p[2] - x[2]).powi(2))
-                            .sqrt(),
-                    );
-                    if matches!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Capsule | ShapeKind::Box))
-                    {
-                        let (a, b) = (body_z(&it.q), body_z(&[x[6], x[7], x[8], x[9]]));
-                        ea.push((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos());
-                    }
-                }
-            }
+            f(capture, t, c, &img, world);
         }
-        seq += 1;
+        capture += 1;
     }
-    rec.obs = obs;
-    let med = |v: &mut Vec<f64>| dkrrt_predictor::eval::median(v);
-    Ok((rec, [med(&mut ep), med(&mut ea)]))
 }
 
 fn body_z(q: &[f64; 4]) -> [f64; 3] {

@@ -14,13 +14,11 @@ use std::path::Path;
 use dkrrt_camera::CameraConfig;
 use dkrrt_collision::pose::rotation_matrix;
 use dkrrt_debris::DebrisWorld;
-use dkrrt_msg::{DepthImage, Zeroed};
 use dkrrt_predictor::eval::perturbed_scene;
-use dkrrt_sim::camera::{CaptureClock, Renderer, Snapshot};
 use dkrrt_visual::train::{Sample, Sequence, VisualTrainConfig};
 use dkrrt_visual::{targets, FrameScan, View, MIN_VIEW_PIXELS, N_OBS};
 
-use crate::depth_view::cube_rig;
+use crate::depth_view::{cube_rig, each_capture};
 
 /// First seed of the visual training runs.
 pub const VISUAL_SEED: u64 = 2_000_000;
@@ -43,71 +41,48 @@ pub fn sequences(
     duration: f64,
     cams: &[CameraConfig],
 ) -> Result<Vec<Sequence>, String> {
-    let dt = 0.01;
     let mut out = Vec::new();
-    let mut renderers = cams.iter().map(|c| Renderer::new(c, [0.0; 3])).collect::<Result<Vec<_>, _>>()?;
-    let mut snap = Box::<Snapshot>::default();
-    let mut img = Box::new(<DepthImage as Zeroed>::zeroed());
+    // One set of renderers for all runs (their noise streams run on from run to run).
+    let mut rdr = crate::depth_view::renderers(cams)?;
+    let rate = cams[0].rate_hz;
     let mut scan = Box::<FrameScan>::default();
     let mut view = Box::<View>::default();
-    let rate = cams.first().ok_or("no camera")?.rate_hz;
     for (si, name) in scenes.iter().enumerate() {
         for r in runs.clone() {
             let seed = seed0 + 10_000 * si as u64 + r;
             let sc = perturbed_scene(name, seed, 1.0).map_err(|e| e.to_string())?;
             let mut world = DebrisWorld::new(&sc).map_err(|e| e.to_string())?;
-            let mut clock = CaptureClock::new(rate);
             // Open sequences: (camera, id) → (last capture, sequence).
             let mut open: Vec<((usize, u32), u64, Sequence)> = Vec::new();
-            let mut capture = 0u64;
-            let steps = (duration / dt).round() as usize;
-            for k in 0..=steps {
-                if k > 0 {
-                    world.step(dt);
-                }
-                let t = world.time();
-                if !clock.due(t) {
-                    continue;
-                }
-                clock.taken(t);
-                capture += 1;
-                snap.of_world(&world);
-                for (c, rdr) in renderers.iter_mut().enumerate() {
-                    rdr.render(&snap, &mut img);
-                    scan.scan(&img);
-                    let r_cam = rotation_matrix(&img.orientation);
-                    for inst in 1..=img.n_instances as u8 {
-                        let id = img.ids[inst as usize - 1];
-                        let n_px = img.instance[..(img.width * img.height) as usize]
-                            .iter()
-                            .zip(&img.depth_mm[..])
-                            .filter(|(i, d)| **i == inst && **d > 0)
-                            .count();
-                        let Some(d) = world.debris().iter().find(|d| d.id == id) else { continue };
-                        if n_px < MIN_VIEW_PIXELS || !scan.crop(&img, inst, &mut view) {
-                            continue;
+            each_capture(&mut world, duration, 0.01, rate, &mut rdr, |capture, _, c, img, world| {
+                scan.scan(img);
+                let r_cam = rotation_matrix(&img.orientation);
+                for inst in 1..=img.n_instances as u8 {
+                    let id = img.ids[inst as usize - 1];
+                    let Some(d) = world.debris().iter().find(|d| d.id == id) else { continue };
+                    if scan.pixels(inst) < MIN_VIEW_PIXELS || !scan.crop(img, inst, &mut view) {
+                        continue;
+                    }
+                    let qq = d.state.q.quaternion();
+                    let r_obj = rotation_matrix(&[qq.w, qq.i, qq.j, qq.k]);
+                    let he = d.props.shape.compute_local_aabb().half_extents();
+                    let y = targets(&r_cam, &r_obj, &[he.x, he.y, he.z]);
+                    let sample =
+                        Sample { view: *view, y: std::array::from_fn::<f32, N_OBS, _>(|i| y[i] as f32) };
+                    match open.iter_mut().find(|o| o.0 == (c, id)) {
+                        Some(o) if o.1 + 1 == capture => {
+                            o.1 = capture;
+                            o.2.samples.push(sample);
                         }
-                        let qq = d.state.q.quaternion();
-                        let r_obj = rotation_matrix(&[qq.w, qq.i, qq.j, qq.k]);
-                        let he = d.props.shape.compute_local_aabb().half_extents();
-                        let y = targets(&r_cam, &r_obj, &[he.x, he.y, he.z]);
-                        let sample =
-                            Sample { view: *view, y: std::array::from_fn::<f32, N_OBS, _>(|i| y[i] as f32) };
-                        match open.iter_mut().find(|o| o.0 == (c, id)) {
-                            Some(o) if o.1 + 1 == capture => {
-                                o.1 = capture;
-                                o.2.samples.push(sample);
-                            }
-                            Some(o) => {
-                                out.push(std::mem::take(&mut o.2));
-                                o.1 = capture;
-                                o.2.samples.push(sample);
-                            }
-                            None => open.push(((c, id), capture, Sequence { samples: vec![sample] })),
+                        Some(o) => {
+                            out.push(std::mem::take(&mut o.2));
+                            o.1 = capture;
+                            o.2.samples.push(sample);
                         }
+                        None => open.push(((c, id), capture, Sequence { samples: vec![sample] })),
                     }
                 }
-            }
+            });
             out.extend(open.into_iter().map(|o| o.2));
         }
     }

@@ -129,6 +129,11 @@ impl FrameScan {
         }
     }
 
+    /// Valid pixels of instance `inst` in the frame scanned last.
+    pub fn pixels(&self, inst: u8) -> usize {
+        self.boxes.get(inst as usize).map_or(0, |b| b.n as usize)
+    }
+
     /// The crop of instance `inst` of `img` (scanned last) into `out`; false when it has no
     /// valid pixel.
     pub fn crop(&self, img: &DepthImage, inst: u8, out: &mut View) -> bool {
