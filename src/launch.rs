@@ -856,7 +856,7 @@ pub fn summary(r: &Value) -> String {
     if !r["planner"].is_null() {
         let fb = &r["planner"]["fallbacks"];
         s += &format!(
-            "  planner ({})  cycles {}  replans {}  plan ms p50 {} p99 {} max {}  deadline misses {}  fallbacks keep {} escape {} brake {}\n",
+            "  planner ({})  cycles {}  replans {}  plan ms p50 {} p99 {} max {}  deadline misses {}  fallbacks keep {} escape {} dodge {} brake {}\n",
             r["planner"]["method"].as_str().unwrap_or("?"),
             r["planner"]["cycles"],
             r["planner"]["replans"],
@@ -866,6 +866,7 @@ pub fn summary(r: &Value) -> String {
             r["planner"]["deadline_misses"],
             fb["keep"],
             fb["escape"],
+            fb["dodge"],
             fb["brake"],
         );
         s += &format!(

@@ -52,6 +52,7 @@ pub struct Row {
     pub fallbacks_keep: u64,
     pub fallbacks_escape: u64,
     pub fallbacks_brake: u64,
+    pub fallbacks_dodge: u64,
     pub deadline_misses: u64,
     pub safe_holds: u64,
     pub straight_duration_s: f64,
@@ -87,6 +88,7 @@ impl Row {
             fallbacks_keep: 0,
             fallbacks_escape: 0,
             fallbacks_brake: 0,
+            fallbacks_dodge: 0,
             deadline_misses: 0,
             safe_holds: 0,
             straight_duration_s: 0.0,
@@ -188,6 +190,7 @@ pub fn run_episode(
             row.fallbacks_keep = p.fallbacks.keep;
             row.fallbacks_escape = p.fallbacks.escape;
             row.fallbacks_brake = p.fallbacks.brake;
+            row.fallbacks_dodge = p.fallbacks.dodge;
             row.deadline_misses = p.deadline_misses;
             row.min_predicted_clearance_m = p.min_predicted_clearance_m;
         }

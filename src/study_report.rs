@@ -39,6 +39,7 @@ pub struct Cell {
     pub fallbacks_keep: u64,
     pub fallbacks_escape: u64,
     pub fallbacks_brake: u64,
+    pub fallbacks_dodge: u64,
     /// Smallest true arm–debris distance over the episodes, and smallest predicted clearance, m.
     pub min_distance_m: Option<f64>,
     pub min_predicted_clearance_m: Option<f64>,
@@ -146,6 +147,7 @@ pub fn summarize(
                 fallbacks_keep: ran.iter().map(|x| x.fallbacks_keep).sum(),
                 fallbacks_escape: ran.iter().map(|x| x.fallbacks_escape).sum(),
                 fallbacks_brake: ran.iter().map(|x| x.fallbacks_brake).sum(),
+                fallbacks_dodge: ran.iter().map(|x| x.fallbacks_dodge).sum(),
                 min_distance_m: min_opt(ran.iter().map(|x| x.min_distance_m)),
                 min_predicted_clearance_m: min_opt(ran.iter().map(|x| x.min_predicted_clearance_m)),
                 lockstep_speed: ran.iter().map(|x| x.plant_s).sum::<f64>()
@@ -197,11 +199,11 @@ fn opt(x: Option<f64>, prec: usize) -> String {
 pub fn markdown_tables(s: &Summary) -> String {
     let mut o = String::new();
     o.push_str("### Completion, collisions and motion per scene and method\n\n");
-    o.push_str("| scene | method | episodes | completed (95 % CI) | collisions (95 % CI) | execution error RMS / max, rad | EE path error RMS / max, m | time to goal, s (median) | path length, rad (median) | plan ms p50 / p99 | replans (mean) | fallbacks keep / escape / brake | min distance, m | lockstep speed |\n");
+    o.push_str("| scene | method | episodes | completed (95 % CI) | collisions (95 % CI) | execution error RMS / max, rad | EE path error RMS / max, m | time to goal, s (median) | path length, rad (median) | plan ms p50 / p99 | replans (mean) | fallbacks keep / escape / dodge / brake | min distance, m | lockstep speed |\n");
     o.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for c in &s.cells {
         o.push_str(&format!(
-            "| {} | {} | {} | **{}** ({:.1}–{:.1} %) | {} ({:.1}–{:.1} %) | {:.2e} / {:.2e} | {:.2e} / {:.2e} | {} | {} | {:.2} / {:.2} | {:.1} | {} / {} / {} | {} | {:.0}× |\n",
+            "| {} | {} | {} | **{}** ({:.1}–{:.1} %) | {} ({:.1}–{:.1} %) | {:.2e} / {:.2e} | {:.2e} / {:.2e} | {} | {} | {:.2} / {:.2} | {:.1} | {} / {} / {} / {} | {} | {:.0}× |\n",
             c.scene,
             c.method,
             c.episodes,
@@ -222,6 +224,7 @@ pub fn markdown_tables(s: &Summary) -> String {
             c.replans_mean,
             c.fallbacks_keep,
             c.fallbacks_escape,
+            c.fallbacks_dodge,
             c.fallbacks_brake,
             opt(c.min_distance_m, 3),
             c.lockstep_speed,

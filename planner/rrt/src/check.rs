@@ -15,6 +15,14 @@
 //! against the sphere holding every point the arm can reach, or holding the resting arm):
 //! they change neither the verdict nor the (capped) clearance, and `V_obs` is the largest
 //! speed of the tracks kept, so a fast object far away no longer shortens every sample step.
+//!
+//! **A start inside the inflation.** The obstacles are inflated by the forecast's bound plus a
+//! margin, so a newer forecast can put the arm *inside* an inflated obstacle while the object
+//! itself is still away. Refusing every motion from there leaves the arm where the object is
+//! coming. So a motion (or message) whose start has clearance `c₀ < 0` is checked with a
+//! *relief* ([`Checker::relieve_start`]): until `t₀ + within_s` its samples need clearance
+//! `≥ c₀ − deeper_m` only (it may not go much deeper than where it starts), after that `≥ 0`
+//! as always. Such a motion leaves the inflation within `within_s`; a rest inside it fails.
 
 use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
@@ -52,6 +60,8 @@ pub struct Checker {
     q_max: [f64; NJ],
     /// Sphere (centre, radius) holding every arm point at any configuration.
     reach: ([f64; 3], f64),
+    /// The relief (floor, until) for a start inside the inflation (see the module docs).
+    relief: Option<(f64, f64)>,
     /// Clearances above this are not measured exactly (reported as the cap), m.
     pub cap: f64,
     /// Configurations checked so far.
@@ -76,6 +86,7 @@ impl Checker {
             q_min,
             q_max,
             reach,
+            relief: None,
             cap: 1.0,
             configs_checked: 0,
         }
@@ -132,6 +143,36 @@ impl Checker {
         clearance(&self.caps, &self.obs, stop_below, self.cap)
     }
 
+    /// Sets the relief for checks of motions that start at `q` at time `t0` (module docs): when
+    /// `q` is inside the inflation there (clearance `c₀ < 0`, with the samples' δ/2), samples
+    /// until `t0 + within_s` need only `c₀ − deeper_m`; else no relief. Returns `c₀`. Every
+    /// check until [`Checker::end_relief`] uses it.
+    pub fn relieve_start(
+        &mut self,
+        world: &WorldInTime,
+        q: &[f64; NJ],
+        t0: f64,
+        deeper_m: f64,
+        within_s: f64,
+    ) -> f64 {
+        let c = self.clearance_at(world, q, t0, 0.5 * self.delta, f64::NEG_INFINITY);
+        self.relief = (c < 0.0 && c.is_finite()).then_some((c - deeper_m.max(0.0), t0 + within_s.max(0.0)));
+        c
+    }
+
+    /// Back to plain checks (clearance `≥ 0` everywhere).
+    pub fn end_relief(&mut self) {
+        self.relief = None;
+    }
+
+    /// The smallest clearance a sample at time `t` may have.
+    fn floor_at(&self, t: f64) -> f64 {
+        match self.relief {
+            Some((floor, until)) if t < until => floor,
+            _ => 0.0,
+        }
+    }
+
     /// The obstacle nearest to configuration `q` at time `t` and its clearance (diagnostics).
     pub fn nearest_at(&mut self, world: &WorldInTime, q: &[f64; NJ], t: f64) -> Option<(u32, f64)> {
         self.poser.pose(q, &mut self.caps);
@@ -171,18 +212,19 @@ impl Checker {
         let dt_min = if v <= 1e-9 { 0.5 } else { (self.delta / v).min(0.5) };
         let mut t = t0;
         loop {
+            let floor = self.floor_at(t);
             let c = if moving || out.samples == 0 {
                 let q = at(t);
-                self.clearance_masked(world, &q, t, half, 0.0, mask)
+                self.clearance_masked(world, &q, t, half, floor, mask)
             } else {
                 // At rest the arm's pose is already computed.
                 self.configs_checked += 1;
                 world.obstacles_within(t, half, mask, &centre, radius + self.cap, &mut self.obs);
-                clearance(&self.caps, &self.obs, 0.0, self.cap)
+                clearance(&self.caps, &self.obs, floor, self.cap)
             };
             out.samples += 1;
             out.min_clearance = out.min_clearance.min(c);
-            if c < 0.0 {
+            if c < floor {
                 out.ok = false;
                 out.t_fail = t;
                 return out;
@@ -192,7 +234,16 @@ impl Checker {
             }
             // Conservative advancement: with clearance c (beyond the δ/2 inflation) nothing can
             // close the gap faster than v, so the next δ/2-margin sample may wait c / v longer.
-            let step = if v > 1e-9 { dt_min.max(c / v + dt_min) } else { dt_min };
+            // Under a relief the gap is to its floor until it ends, then to 0: either the gap to
+            // the floor runs out first, or the samples may skip to its end (or as far as c
+            // allows past it).
+            let step = if v > 1e-9 {
+                let until = self.relief.map_or(t, |r| r.1) - t;
+                let free = if (c - floor) / v < until { (c - floor) / v } else { until.max(c / v) };
+                dt_min.max(free + dt_min)
+            } else {
+                dt_min
+            };
             t = (t + step).min(t1c);
         }
         out

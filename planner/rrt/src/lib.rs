@@ -25,5 +25,5 @@ pub use check::{Check, Checker};
 pub use replan::{
     check_message, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, Summary, TrackerView,
 };
-pub use rrt::{Plan, PlanStats, Planner, PlannerConfig, Reach, Request};
+pub use rrt::{Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_DT, DODGE_GAIN_M};
 pub use world::{After, TimedPose, WorldError, WorldInTime};

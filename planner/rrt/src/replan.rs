@@ -98,6 +98,9 @@ pub struct Fallbacks {
     pub keep: u64,
     pub escape: u64,
     pub brake: u64,
+    /// Best-effort motions away from a predicted conflict when nothing clean was found
+    /// ([`crate::Planner::dodge`]; published with the escape status).
+    pub dodge: u64,
 }
 
 /// Running figures of the loop.
@@ -527,7 +530,18 @@ impl Replanner {
         if self.take_backup(t_now, st, out) {
             return true;
         }
-        // Brake to rest from the commit state (nothing valid is known).
+        // Nothing clean is known: the motion with the most predicted clearance, if it beats
+        // staying (the brake, or the rest) clearly.
+        let req = Request { start, t0: t_c, goal: *goal_for(self.goal.as_ref()) };
+        if let Some(p) = self.planner.dodge(&req, &self.world, id, out) {
+            self.accept(out, Reach::Escape);
+            st.min_predicted_clearance_m = p.min_clearance;
+            self.stats.fallbacks.dodge += 1;
+            st.fallback = Fallback::Escape as u32;
+            st.active_traj_id = id;
+            return true;
+        }
+        // Brake to rest from the commit state.
         self.stats.fallbacks.brake += 1;
         st.fallback = Fallback::Brake as u32;
         let moving = start.v.iter().chain(start.a.iter()).any(|x| x.abs() > 1e-12);
@@ -764,5 +778,10 @@ pub fn check_message_at(
     t1: f64,
 ) -> crate::Check {
     let start = tr.start_ns as f64 * 1e-9;
-    planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p)
+    // A message that starts inside the inflated obstacles must leave them (the relief).
+    let s0 = tr.sample(t0 - start);
+    planner.relieve(world, &KinState { p: s0.p, v: s0.v, a: s0.a }, t0);
+    let c = planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p);
+    planner.checker.end_relief();
+    c
 }

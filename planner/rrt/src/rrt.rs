@@ -51,6 +51,12 @@ pub struct PlannerConfig {
     pub lookahead_s: f64,
     /// Iterations after the first solution.
     pub improve_iters: u32,
+    /// A start inside the inflated obstacles ([`crate::check`]): motions from it may go this
+    /// much deeper, m, and must be out within this time, s.
+    pub relief_m: f64,
+    pub relief_s: f64,
+    /// The deepest predicted clearance a dodge ([`Planner::dodge`]) may have, m.
+    pub dodge_depth_m: f64,
     /// Configuration checks per `plan` call: a deterministic proxy for compute time (one check
     /// against 32 forecast tracks takes ~5 µs on the development VM, see the README).
     pub max_configs: u64,
@@ -70,6 +76,9 @@ impl Default for PlannerConfig {
             lookahead_s: 5.0,
             improve_iters: 40,
             max_configs: 4000,
+            relief_m: 0.02,
+            relief_s: 1.0,
+            dodge_depth_m: 0.1,
             seed: 1,
         }
     }
@@ -131,6 +140,12 @@ struct Node {
 
 const WAIT_LADDER: [f64; 9] = [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 3.0, 4.5, 6.0];
 const ROOT: u32 = 0;
+
+/// [`Planner::dodge`]: its sampling step, s, its random candidates, and how much more
+/// predicted clearance than staying it must offer, m.
+pub const DODGE_DT: f64 = 0.05;
+const DODGE_RANDOM: usize = 20;
+pub const DODGE_GAIN_M: f64 = 0.01;
 
 /// The planner (tree, checker, random stream: all preallocated).
 pub struct Planner {
@@ -299,7 +314,7 @@ impl Planner {
         req: &Request,
         world: &WorldInTime,
         budget: u32,
-        mut keep_going: impl FnMut() -> bool,
+        keep_going: impl FnMut() -> bool,
         traj_id: u64,
         out: &mut Trajectory,
     ) -> Option<Plan> {
@@ -312,7 +327,6 @@ impl Planner {
         self.root = req.start;
         self.root_moving = req.start.v.iter().chain(req.start.a.iter()).any(|x| x.abs() > 1e-12);
         self.t0 = req.t0;
-        let goal = req.goal;
         self.nodes.push(Node {
             q: req.start.p,
             t: req.t0,
@@ -320,12 +334,31 @@ impl Planner {
             wait: 0.0,
             min_clear: self.checker.cap,
         });
-        // The start itself must be clear now (else every plan from it is already in collision).
-        let c = self.checker.clearance_at(world, &req.start.p, req.t0, 0.5 * self.checker.delta(), 0.0);
-        if c < 0.0 {
-            self.stats.configs_checked = self.checker.configs_checked - c0;
-            return None;
-        }
+        // A start inside the inflated obstacles may only be left (the checker's relief).
+        self.relieve(world, &req.start, req.t0);
+        let plan = self.grow(req, world, budget, keep_going, traj_id, out, (wall, c0));
+        self.checker.end_relief();
+        self.stats.configs_checked = self.checker.configs_checked - c0;
+        plan
+    }
+
+    /// Sets the checker's relief for motions from `start` at `t0` ([`crate::check`]).
+    pub fn relieve(&mut self, world: &WorldInTime, start: &KinState<NJ>, t0: f64) -> f64 {
+        self.checker.relieve_start(world, &start.p, t0, self.cfg.relief_m, self.cfg.relief_s)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn grow(
+        &mut self,
+        req: &Request,
+        world: &WorldInTime,
+        budget: u32,
+        mut keep_going: impl FnMut() -> bool,
+        traj_id: u64,
+        out: &mut Trajectory,
+        (wall, c0): (std::time::Instant, u64),
+    ) -> Option<Plan> {
+        let goal = req.goal;
         // A moving start can first brake to rest: the rest-at-start node (waits grow from it).
         if self.root_moving {
             if let Some(tr) = dkrrt_otg::Trajectory::calculate_velocity(
@@ -395,7 +428,6 @@ impl Planner {
             self.escape(world, traj_id, out)
         };
         self.stats.nodes = self.nodes.len() as u32;
-        self.stats.configs_checked = self.checker.configs_checked - c0;
         plan
     }
 
@@ -457,6 +489,104 @@ impl Planner {
             min_clearance: clear,
             n_waypoints: self.path.len(),
         })
+    }
+
+    /// The last resort when [`Planner::plan`] found neither the goal nor a safe haven and the
+    /// arm would otherwise stay (or brake) where a conflict is predicted: the motion from
+    /// `req.start` to rest at one of a few nearby configurations (one step of `step_rad` along
+    /// each joint either way, random ones within that step, the goal) whose predicted
+    /// clearance, sampled every [`DODGE_DT`] over the look-ahead (motion and rest after it;
+    /// negative values are depths into the inflated obstacles), is the largest. Written into
+    /// `out` only when that beats staying (at rest at the start, or the brake from a moving
+    /// start) by [`DODGE_GAIN_M`] and goes no deeper than `dodge_depth_m` into the inflated
+    /// obstacles (deeper, it would most likely meet the object itself: brake instead). A best
+    /// effort, not a clean plan: its clearance may be negative, and the next cycle checks it
+    /// like any other plan.
+    pub fn dodge(
+        &mut self,
+        req: &Request,
+        world: &WorldInTime,
+        traj_id: u64,
+        out: &mut Trajectory,
+    ) -> Option<Plan> {
+        self.nodes.clear();
+        self.best_goal = None;
+        self.root = req.start;
+        self.root_moving = req.start.v.iter().chain(req.start.a.iter()).any(|x| x.abs() > 1e-12);
+        self.t0 = req.t0;
+        self.nodes.push(Node {
+            q: req.start.p,
+            t: req.t0,
+            parent: ROOT,
+            wait: 0.0,
+            min_clear: self.checker.cap,
+        });
+        // Staying: the rest at the start, or the brake to rest.
+        let stay_q = if self.root_moving {
+            dkrrt_otg::Trajectory::calculate_velocity(
+                &req.start,
+                &[0.0; NJ],
+                &[0.0; NJ],
+                &self.limits,
+                &Options::default(),
+            )
+            .ok()?
+            .final_state()
+            .p
+        } else {
+            req.start.p
+        };
+        let (stay, _) = self.dodge_score(world, &stay_q)?;
+        let mut best: Option<([f64; NJ], f64, f64)> = None;
+        let step = self.cfg.step_rad;
+        for k in 0..(2 * NJ + DODGE_RANDOM + 1) {
+            let q: [f64; NJ] = if k < 2 * NJ {
+                let mut q = stay_q;
+                q[k / 2] += if k % 2 == 0 { step } else { -step };
+                q
+            } else if k < 2 * NJ + DODGE_RANDOM {
+                std::array::from_fn(|j| stay_q[j] + step * (2.0 * self.rng.random::<f64>() - 1.0))
+            } else {
+                req.goal
+            };
+            let q: [f64; NJ] = std::array::from_fn(|j| q[j].clamp(self.q_min[j], self.q_max[j]));
+            if let Some((score, arrival)) = self.dodge_score(world, &q) {
+                if best.is_none_or(|b| score > b.1) {
+                    best = Some((q, score, arrival));
+                }
+            }
+        }
+        let (q, score, arrival) = best?;
+        if score < stay + DODGE_GAIN_M
+            || score < -self.cfg.dodge_depth_m
+            || self.nodes.len() >= self.nodes.capacity()
+        {
+            return None;
+        }
+        self.nodes.push(Node { q, t: arrival, parent: ROOT, wait: 0.0, min_clear: score });
+        self.write(1, None, traj_id, out).ok()?;
+        Some(Plan { reach: Reach::Escape, arrival, min_clearance: score, n_waypoints: 1 })
+    }
+
+    /// The smallest predicted clearance of "move from the root to rest at `q`, then stay",
+    /// sampled every [`DODGE_DT`] to the look-ahead's end, and the arrival time.
+    fn dodge_score(&mut self, world: &WorldInTime, q: &[f64; NJ]) -> Option<(f64, f64)> {
+        let tr = self.motion(&self.root, q);
+        if tr.is_none() && (self.root_moving || *q != self.root.p) {
+            return None;
+        }
+        let (t0, t_end, d) = (self.t0, self.t_end(), tr.as_ref().map_or(0.0, |t| t.duration()));
+        let mut m = f64::INFINITY;
+        let mut t = t0;
+        while t <= t_end + 1e-9 {
+            let at = match &tr {
+                Some(tr) if t - t0 < d => tr.at(t - t0).p,
+                _ => *q,
+            };
+            m = m.min(self.checker.clearance_at(world, &at, t, 0.0, f64::NEG_INFINITY));
+            t += DODGE_DT;
+        }
+        Some((m, t0 + d))
     }
 
     /// The intermediate waypoints of the last written plan (rest configurations after the start,

@@ -177,6 +177,106 @@ fn an_unavoidable_obstacle_gives_no_plan() {
     assert_eq!(out.traj_id, 0, "nothing written");
 }
 
+/// A newer forecast can put the resting arm just inside an obstacle's inflation (bound plus
+/// margin) while the object itself is still away: the planner must move the arm out, never
+/// deeper than the relief allows, and out within its time; resting there is not clear.
+#[test]
+fn a_start_inside_the_inflation_is_left_within_the_relief() {
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&START, &mut caps);
+    let k = caps[4];
+    let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
+    let mut u = [axis[1], -axis[0], 0.0]; // axis × z: perpendicular to the link
+    let n = (u[0] * u[0] + u[1] * u[1]).sqrt();
+    u = [u[0] / n, u[1] / n, 0.0];
+    let (r, sigma, speed, t0) = (0.1, 0.1, 0.03, 2.0);
+    // The sphere's inflated surface (σ + margin 0.05) reaches 1 cm into the link at t0; the
+    // object itself is 14 cm away, closing at 3 cm/s.
+    let d = k.r + r + sigma + 0.05 - 0.01;
+    let at_t0 = [k.centre[0] + d * u[0], k.centre[1] + d * u[1], k.centre[2]];
+    let v = [-speed * u[0], -speed * u[1], 0.0];
+    let p0 = [at_t0[0] - v[0] * t0, at_t0[1] - v[1] * t0, at_t0[2]];
+    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
+    let cfg = PlannerConfig::default();
+    let mut p = planner();
+    let c0 = p.checker.clearance_at(&w, &START, t0, 0.5 * p.checker.delta(), f64::NEG_INFINITY);
+    assert!((-0.05..0.0).contains(&c0), "set-up: the start is just inside the inflation ({c0})");
+
+    // Resting there fails within the relief time, even under the relief.
+    assert!(p.relieve(&w, &KinState::rest(START), t0) < 0.0);
+    let rest = p.checker.check(&w, t0, t0 + 4.0, t0 + 4.0, false, |_| START);
+    p.checker.end_relief();
+    // (found at the first sample past the relief; samples are at most 0.5 s apart)
+    assert!(!rest.ok && rest.t_fail <= t0 + cfg.relief_s + 0.5, "{rest:?}");
+
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let plan = p.plan(&req, &w, 300, || true, 5, &mut out).expect("a way out of the inflation");
+    // Every millisecond: no deeper than the relief, clear after it, and the object itself
+    // (σ and margin off) never touched.
+    let t_end = t0 + cfg.lookahead_s;
+    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
+    bare.set_margin(0.0);
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    ch.cap = 10.0;
+    let mut t = t0;
+    while t <= t_end {
+        let q = out.sample(t - t0).p;
+        let c = ch.clearance_at(&w, &q, t, 0.0, f64::NEG_INFINITY);
+        let floor = if t < t0 + cfg.relief_s { c0 - cfg.relief_m } else { 0.0 };
+        assert!(c >= floor - 1e-9, "{:?} at t = {t:.3}: clearance {c:.4} below {floor:.4}", plan.reach);
+        assert!(ch.clearance_at(&bare, &q, t, 0.0, f64::NEG_INFINITY) > 0.0);
+        t += 1e-3;
+    }
+    // The same message passes the final check (which applies the same relief).
+    assert!(check_message(&mut p, &w, &out, t0, t_end).0);
+}
+
+/// An object coming fast at the resting arm: no motion is clean, and the dodge (the motion
+/// with the most predicted clearance) leaves the arm clearly better off than staying.
+#[test]
+fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&START, &mut caps);
+    let k = caps[4];
+    let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
+    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+    let u = [axis[1] / n, -axis[0] / n, 0.0];
+    let (r, sigma, speed, t0) = (0.1, 0.1, 0.15, 2.0);
+    // At t0 the inflated sphere is 2 cm inside the link; it passes right through it.
+    let d = k.r + r + sigma + 0.05 - 0.02;
+    let v = [-speed * u[0], -speed * u[1], 0.0];
+    let p0 = [k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]];
+    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let plan = p.dodge(&req, &w, 9, &mut out).expect("a dodge");
+    assert_eq!(plan.reach, Reach::Escape);
+    assert_eq!(out.traj_id, 9);
+    // Measured every millisecond over the look-ahead: the dodge against staying.
+    let t_end = t0 + PlannerConfig::default().lookahead_s;
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let (mut moved, mut stay) = (f64::INFINITY, f64::INFINITY);
+    let mut t = t0;
+    while t <= t_end {
+        let q = out.sample(t - t0).p;
+        moved = moved.min(ch.clearance_at(&w, &q, t, 0.0, f64::NEG_INFINITY));
+        stay = stay.min(ch.clearance_at(&w, &START, t, 0.0, f64::NEG_INFINITY));
+        t += 1e-3;
+    }
+    assert!(moved > stay + 0.5 * DODGE_GAIN_M, "dodge {moved:.3} vs staying {stay:.3}");
+    assert!((plan.min_clearance - moved).abs() < 0.02, "{} vs {moved}", plan.min_clearance);
+    let s0 = out.sample(0.0);
+    assert!((0..NJ).all(|j| s0.p[j] == START[j] && s0.v[j] == 0.0));
+    // Where nothing is coming, there is nothing to dodge.
+    let calm = WorldInTime::new(0.05);
+    assert!(p.dodge(&req, &calm, 10, &mut out).is_none());
+}
+
 #[test]
 fn plans_are_deterministic_for_a_seed() {
     let (mid, t_mid) = straight_mid_point();

@@ -3,7 +3,7 @@
 
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::{ControllerMode, DebrisForecast, DebrisShape, Fallback, ForecastStep, Trajectory, Zeroed};
-use dkrrt_otg::Limits;
+use dkrrt_otg::{KinState, Limits};
 use dkrrt_rrt::*;
 use dkrrt_rt::alloc_count::{count, CountingAlloc};
 
@@ -170,6 +170,10 @@ fn a_planning_cycle_allocates_nothing_after_warm_up() {
             let f = &near;
             rp.step(k * 100_000_000, &START, idle, Some(f), &GOAL, &mut clk, &mut out);
         }
+        // The last resort (a dodge) evaluates its candidates on the same preallocated state.
+        let req = Request { start: KinState::rest(START), t0: 4.0, goal: GOAL };
+        let Replanner { planner, world, .. } = &mut rp;
+        planner.dodge(&req, world, 99, &mut out);
     });
     assert!(rp.stats.cycles >= 40);
     assert_eq!((st.allocs, st.reallocs), (0, 0), "{st:?}");
