@@ -223,9 +223,7 @@ pub fn predict_eval(
         crate::depth_view::record_depth(sc, seed, dur, dt, &rig, &learned)
     };
     let mut depth_pred = cfg.predictor;
-    depth_pred.filter.pos_sigma = depth_pred.filter.pos_sigma.max(dkrrt_planner::predict::DEPTH_POS_SIGMA_M);
-    depth_pred.filter.att_sigma =
-        depth_pred.filter.att_sigma.max(dkrrt_planner::predict::DEPTH_ATT_SIGMA_RAD);
+    dkrrt_planner::predict::for_depth(&mut depth_pred);
     let mut views: Vec<View> = Vec::new();
     for &method in cfg.methods.iter().filter(|m| **m == Method::DeepKoopmanOnline) {
         views.push(View { name: "depth", method, predictor: depth_pred, record: &rec });

@@ -123,13 +123,19 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
     cfg.filter.vel_sigma = sc.debris.vel_sigma_mps.max(1e-5);
     cfg.filter.rate_sigma = sc.debris.rate_sigma_radps.max(1e-5);
     if sc.depth_input() {
-        // Poses from depth frames (`dkrrt_depthpose::perception`): a pixel spans z/f (6 cm at
-        // 5 m for the default camera), and occlusion and the visible side move the centroid;
-        // the front end's tests recover centres within 5–10 cm and axes within 0.05 rad.
-        cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
-        cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
+        for_depth(&mut cfg);
     }
     cfg
+}
+
+/// The predictor settings for poses from depth frames (`dkrrt_depthpose::perception`; the
+/// same for `dkrrt predict-eval`'s depth views): a pixel spans z/f (6 cm at 5 m for the
+/// default camera), and occlusion and the visible side move the centroid (the front end's
+/// tests recover centres within 5–10 cm and axes within 0.05 rad), so the filter assumes that
+/// noise.
+pub fn for_depth(cfg: &mut PredictorConfig) {
+    cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
+    cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
 }
 
 /// The measurement noise the predictor's filter assumes for poses from depth frames, m.
