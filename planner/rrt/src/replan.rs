@@ -533,7 +533,8 @@ impl Replanner {
         // Nothing clean is known: the motion with the most predicted clearance, if it beats
         // staying (the brake, or the rest) clearly.
         let req = Request { start, t0: t_c, goal: *goal_for(self.goal.as_ref()) };
-        if let Some(p) = self.planner.dodge(&req, &self.world, id, out) {
+        let deadline = self.deadline_ns(c_start);
+        if let Some(p) = self.planner.dodge(&req, &self.world, id, || clock() < deadline, out) {
             self.accept(out, Reach::Escape);
             st.min_predicted_clearance_m = p.min_clearance;
             self.stats.fallbacks.dodge += 1;
@@ -634,8 +635,7 @@ impl Replanner {
         out: &mut Trajectory,
     ) -> Option<crate::rrt::Plan> {
         let req = Request { start: *start, t0, goal: *goal_for(self.goal.as_ref()) };
-        let deadline =
-            if self.cfg.enforce_deadline { c_start + (self.cfg.deadline_s * 1e9) as u64 } else { u64::MAX };
+        let deadline = self.deadline_ns(c_start);
         self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
         let plan = self.planner.plan(
             &req,
@@ -659,6 +659,16 @@ impl Replanner {
             self.backoff = (1u32 << self.misses.min(3)) - 1; // 0, 1, 3, 7 cycles
         }
         plan
+    }
+
+    /// The clock reading by which a cycle started at `c_start` must be done (never, in
+    /// lockstep: its work is the iteration budget).
+    fn deadline_ns(&self, c_start: u64) -> u64 {
+        if self.cfg.enforce_deadline {
+            c_start + (self.cfg.deadline_s * 1e9) as u64
+        } else {
+            u64::MAX
+        }
     }
 
     /// Writes into `out` the brake to rest from the moving state `start` at `start_ns`.

@@ -501,12 +501,13 @@ impl Planner {
     /// start) by [`DODGE_GAIN_M`] and goes no deeper than `dodge_depth_m` into the inflated
     /// obstacles (deeper, it would most likely meet the object itself: brake instead). A best
     /// effort, not a clean plan: its clearance may be negative, and the next cycle checks it
-    /// like any other plan.
+    /// like any other plan. Candidates are tried while `keep_going()` (the cycle's deadline).
     pub fn dodge(
         &mut self,
         req: &Request,
         world: &WorldInTime,
         traj_id: u64,
+        mut keep_going: impl FnMut() -> bool,
         out: &mut Trajectory,
     ) -> Option<Plan> {
         self.nodes.clear();
@@ -540,6 +541,9 @@ impl Planner {
         let mut best: Option<([f64; NJ], f64, f64)> = None;
         let step = self.cfg.step_rad;
         for k in 0..(2 * NJ + DODGE_RANDOM + 1) {
+            if !keep_going() {
+                break; // the candidates so far (the deadline)
+            }
             let q: [f64; NJ] = if k < 2 * NJ {
                 let mut q = stay_q;
                 q[k / 2] += if k % 2 == 0 { step } else { -step };

@@ -254,7 +254,7 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     let mut out = <Trajectory as Zeroed>::zeroed();
     let req = Request { start: KinState::rest(START), t0, goal: GOAL };
     assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
-    let plan = p.dodge(&req, &w, 9, &mut out).expect("a dodge");
+    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
     assert_eq!(plan.reach, Reach::Escape);
     assert_eq!(out.traj_id, 9);
     // Measured every millisecond over the look-ahead: the dodge against staying.
@@ -274,7 +274,7 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     assert!((0..NJ).all(|j| s0.p[j] == START[j] && s0.v[j] == 0.0));
     // Where nothing is coming, there is nothing to dodge.
     let calm = WorldInTime::new(0.05);
-    assert!(p.dodge(&req, &calm, 10, &mut out).is_none());
+    assert!(p.dodge(&req, &calm, 10, || true, &mut out).is_none());
 }
 
 #[test]

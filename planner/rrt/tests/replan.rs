@@ -173,7 +173,7 @@ fn a_planning_cycle_allocates_nothing_after_warm_up() {
         // The last resort (a dodge) evaluates its candidates on the same preallocated state.
         let req = Request { start: KinState::rest(START), t0: 4.0, goal: GOAL };
         let Replanner { planner, world, .. } = &mut rp;
-        planner.dodge(&req, world, 99, &mut out);
+        planner.dodge(&req, world, 99, || true, &mut out);
     });
     assert!(rp.stats.cycles >= 40);
     assert_eq!((st.allocs, st.reallocs), (0, 0), "{st:?}");
