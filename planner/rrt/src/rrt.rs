@@ -322,6 +322,17 @@ impl Planner {
         let wall = std::time::Instant::now();
         self.first_solution_s = None;
         let c0 = self.checker.configs_checked;
+        self.reset(req);
+        // A start inside the inflated obstacles may only be left (the checker's relief).
+        self.relieve(world, &req.start, req.t0);
+        let plan = self.grow(req, world, budget, keep_going, traj_id, out, (wall, c0));
+        self.checker.end_relief();
+        self.stats.configs_checked = self.checker.configs_checked - c0;
+        plan
+    }
+
+    /// An empty tree rooted at the request's start.
+    fn reset(&mut self, req: &Request) {
         self.nodes.clear();
         self.best_goal = None;
         self.root = req.start;
@@ -334,12 +345,19 @@ impl Planner {
             wait: 0.0,
             min_clear: self.checker.cap,
         });
-        // A start inside the inflated obstacles may only be left (the checker's relief).
-        self.relieve(world, &req.start, req.t0);
-        let plan = self.grow(req, world, budget, keep_going, traj_id, out, (wall, c0));
-        self.checker.end_relief();
-        self.stats.configs_checked = self.checker.configs_checked - c0;
-        plan
+    }
+
+    /// Where the jerk-limited brake from the moving state `s` comes to rest.
+    fn brake_point(&self, s: &KinState<NJ>) -> Option<[f64; NJ]> {
+        dkrrt_otg::Trajectory::calculate_velocity(
+            s,
+            &[0.0; NJ],
+            &[0.0; NJ],
+            &self.limits,
+            &Options::default(),
+        )
+        .ok()
+        .map(|b| b.final_state().p)
     }
 
     /// Sets the checker's relief for motions from `start` at `t0` ([`crate::check`]).
@@ -361,16 +379,7 @@ impl Planner {
         let goal = req.goal;
         // A moving start can first brake to rest: the rest-at-start node (waits grow from it).
         if self.root_moving {
-            if let Some(tr) = dkrrt_otg::Trajectory::calculate_velocity(
-                &req.start,
-                &[0.0; NJ],
-                &[0.0; NJ],
-                &self.limits,
-                &Options::default(),
-            )
-            .ok()
-            .map(|b| b.final_state().p)
-            {
+            if let Some(tr) = self.brake_point(&req.start) {
                 if let Some((t, clear)) = self.edge(world, ROOT, 0.0, &tr) {
                     self.nodes.push(Node { q: tr, t, parent: ROOT, wait: 0.0, min_clear: clear });
                 }
@@ -510,33 +519,9 @@ impl Planner {
         mut keep_going: impl FnMut() -> bool,
         out: &mut Trajectory,
     ) -> Option<Plan> {
-        self.nodes.clear();
-        self.best_goal = None;
-        self.root = req.start;
-        self.root_moving = req.start.v.iter().chain(req.start.a.iter()).any(|x| x.abs() > 1e-12);
-        self.t0 = req.t0;
-        self.nodes.push(Node {
-            q: req.start.p,
-            t: req.t0,
-            parent: ROOT,
-            wait: 0.0,
-            min_clear: self.checker.cap,
-        });
+        self.reset(req);
         // Staying: the rest at the start, or the brake to rest.
-        let stay_q = if self.root_moving {
-            dkrrt_otg::Trajectory::calculate_velocity(
-                &req.start,
-                &[0.0; NJ],
-                &[0.0; NJ],
-                &self.limits,
-                &Options::default(),
-            )
-            .ok()?
-            .final_state()
-            .p
-        } else {
-            req.start.p
-        };
+        let stay_q = if self.root_moving { self.brake_point(&req.start)? } else { req.start.p };
         let (stay, _) = self.dodge_score(world, &stay_q)?;
         let mut best: Option<([f64; NJ], f64, f64)> = None;
         let step = self.cfg.step_rad;

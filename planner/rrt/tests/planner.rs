@@ -177,26 +177,31 @@ fn an_unavoidable_obstacle_gives_no_plan() {
     assert_eq!(out.traj_id, 0, "nothing written");
 }
 
-/// A newer forecast can put the resting arm just inside an obstacle's inflation (bound plus
-/// margin) while the object itself is still away: the planner must move the arm out, never
-/// deeper than the relief allows, and out within its time; resting there is not clear.
-#[test]
-fn a_start_inside_the_inflation_is_left_within_the_relief() {
+/// A sphere of radius `r` (bound `sigma`, margin 0.05) coming at link 4 of the arm resting at
+/// START, square to the link at `speed`, its inflated surface `inside` deep in the link at
+/// `t0`: its position at t = 0 and its velocity.
+fn coming_at_link(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> ([f64; 3], [f64; 3]) {
     let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
     let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
     poser.pose(&START, &mut caps);
     let k = caps[4];
     let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
-    let mut u = [axis[1], -axis[0], 0.0]; // axis × z: perpendicular to the link
-    let n = (u[0] * u[0] + u[1] * u[1]).sqrt();
-    u = [u[0] / n, u[1] / n, 0.0];
+    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+    let u = [axis[1] / n, -axis[0] / n, 0.0]; // axis × z: square to the link
+    let d = k.r + r + sigma + 0.05 - inside;
+    let v = [-speed * u[0], -speed * u[1], 0.0];
+    ([k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]], v)
+}
+
+/// A newer forecast can put the resting arm just inside an obstacle's inflation (bound plus
+/// margin) while the object itself is still away: the planner must move the arm out, never
+/// deeper than the relief allows, and out within its time; resting there is not clear.
+#[test]
+fn a_start_inside_the_inflation_is_left_within_the_relief() {
     let (r, sigma, speed, t0) = (0.1, 0.1, 0.03, 2.0);
     // The sphere's inflated surface (σ + margin 0.05) reaches 1 cm into the link at t0; the
     // object itself is 14 cm away, closing at 3 cm/s.
-    let d = k.r + r + sigma + 0.05 - 0.01;
-    let at_t0 = [k.centre[0] + d * u[0], k.centre[1] + d * u[1], k.centre[2]];
-    let v = [-speed * u[0], -speed * u[1], 0.0];
-    let p0 = [at_t0[0] - v[0] * t0, at_t0[1] - v[1] * t0, at_t0[2]];
+    let (p0, v) = coming_at_link(r, sigma, 0.01, speed, t0);
     let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
     let cfg = PlannerConfig::default();
     let mut p = planner();
@@ -237,18 +242,9 @@ fn a_start_inside_the_inflation_is_left_within_the_relief() {
 /// with the most predicted clearance) leaves the arm clearly better off than staying.
 #[test]
 fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
-    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
-    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
-    poser.pose(&START, &mut caps);
-    let k = caps[4];
-    let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
-    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
-    let u = [axis[1] / n, -axis[0] / n, 0.0];
     let (r, sigma, speed, t0) = (0.1, 0.1, 0.15, 2.0);
     // At t0 the inflated sphere is 2 cm inside the link; it passes right through it.
-    let d = k.r + r + sigma + 0.05 - 0.02;
-    let v = [-speed * u[0], -speed * u[1], 0.0];
-    let p0 = [k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]];
+    let (p0, v) = coming_at_link(r, sigma, 0.02, speed, t0);
     let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
     let mut p = planner();
     let mut out = <Trajectory as Zeroed>::zeroed();
