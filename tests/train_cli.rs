@@ -15,6 +15,14 @@ fn small_study(methods: &str) -> Command {
     c
 }
 
+/// Runs `cmd` with `--json path`: it must succeed; its stdout and the rows it wrote.
+fn rows_of(cmd: &mut Command, path: &std::path::Path) -> (String, Vec<serde_json::Value>) {
+    let out = cmd.arg("--json").arg(path).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    (String::from_utf8_lossy(&out.stdout).to_string(), rows)
+}
+
 /// `dkrrt train --visual --quick`: f_θ trained on depth views (Algorithm 1) with a progress
 /// bar and the validation per horizon, saved as a model file that `predict-eval` reads; a
 /// corrupt one is refused naming the file and the field.
@@ -31,17 +39,8 @@ fn train_visual_writes_a_model_that_predict_eval_reads() {
     assert!(stdout.contains("training views") && stdout.contains("other runs per scene"), "{stdout}");
     assert!(stdout.contains("per horizon") && stdout.contains("  4: "), "{stdout}");
     assert_eq!(&std::fs::read(&model).unwrap()[..8], b"DKRRTVIS");
-    let rows = dir.join("rows.json");
-    let out = small_study("deep-koopman-online")
-        .arg("--visual-model")
-        .arg(&model)
-        .arg("--json")
-        .arg(&rows)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let rows: Vec<serde_json::Value> =
-        serde_json::from_str(&std::fs::read_to_string(&rows).unwrap()).unwrap();
+    let (_, rows) =
+        rows_of(small_study("deep-koopman-online").arg("--visual-model").arg(&model), &dir.join("rows.json"));
     assert_eq!(rows.iter().filter(|r| r["method"] == "deep-koopman-online+visual").count(), 4);
     let mut bytes = std::fs::read(&model).unwrap();
     bytes[30] ^= 1;
@@ -78,18 +77,10 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
     assert_eq!(&bytes[..8], b"DKRRTDKM");
 
     // The study with that model: rows for every requested method and horizon.
-    let rows_path = dir.join("rows.json");
-    let out = small_study("constant-velocity,edmd-poly,deep-koopman-online")
-        .arg("--model")
-        .arg(&model)
-        .arg("--json")
-        .arg(&rows_path)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let rows: Vec<serde_json::Value> =
-        serde_json::from_str(&std::fs::read_to_string(&rows_path).unwrap()).unwrap();
+    let (stdout, rows) = rows_of(
+        small_study("constant-velocity,edmd-poly,deep-koopman-online").arg("--model").arg(&model),
+        &dir.join("rows.json"),
+    );
     // ... and the depth camera's views of the same runs for the planner's predictor (issue #15):
     // the classical front end and the learned one (the shipped f_θ), with their observations'
     // own errors.
@@ -131,14 +122,8 @@ fn train_writes_a_model_that_predict_eval_uses_and_corruption_is_refused() {
 
     // Another seed: another set of runs (other errors); a seed that would reach the deep
     // model's training seeds is refused naming the option.
-    let out = small_study("constant-velocity")
-        .args(["--seed", "50007", "--json"])
-        .arg(dir.join("rows2.json"))
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let rows2: Vec<serde_json::Value> =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("rows2.json")).unwrap()).unwrap();
+    let (_, rows2) =
+        rows_of(small_study("constant-velocity").args(["--seed", "50007"]), &dir.join("rows2.json"));
     let cv = |rows: &[serde_json::Value]| -> Vec<f64> {
         rows.iter()
             .filter(|r| r["method"] == "constant-velocity")
