@@ -213,22 +213,21 @@ pub fn predict_eval(
         Some(p) => Some(dkrrt_visual::file::load(Path::new(p))?),
         None => Some(dkrrt_planner::predict::embedded_visual()?),
     };
-    let learned = || match &visual {
-        Some(net) => dkrrt_depthpose::perception::DepthPerception::with_model(Box::new(
-            dkrrt_visual::LearnedAxes::new(net.clone()),
-        )),
-        None => dkrrt_depthpose::perception::DepthPerception::default(),
-    };
-    let rec_visual = |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
-        crate::depth_view::record_depth(sc, seed, dur, dt, &rig, &learned)
-    };
+    // The learned front end exists only with a visual model.
+    let rec_visual = visual.as_ref().map(|net| {
+        let learned = move || dkrrt_planner::predict::learned_perception(net.clone());
+        let rig = &rig;
+        move |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
+            crate::depth_view::record_depth(sc, seed, dur, dt, rig, &learned)
+        }
+    });
     let mut depth_pred = cfg.predictor;
     dkrrt_planner::predict::for_depth(&mut depth_pred);
     let mut views: Vec<View> = Vec::new();
     for &method in cfg.methods.iter().filter(|m| **m == Method::DeepKoopmanOnline) {
         views.push(View { name: "depth", method, predictor: depth_pred, record: &rec });
-        if visual.is_some() {
-            views.push(View { name: "visual", method, predictor: depth_pred, record: &rec_visual });
+        if let Some(r) = &rec_visual {
+            views.push(View { name: "visual", method, predictor: depth_pred, record: r });
         }
     }
     let rows = run_study_views(&cfg, deep.as_ref(), &views).map_err(|e| e.to_string())?;

@@ -41,6 +41,11 @@ pub fn embedded_visual() -> Result<dkrrt_visual::VisualNet, String> {
     dkrrt_visual::file::from_bytes(EMBEDDED_VISUAL).map_err(|e| format!("embedded visual model: {e}"))
 }
 
+/// The depth front end whose attitudes and classes the learned visual features `net` read.
+pub fn learned_perception(net: dkrrt_visual::VisualNet) -> DepthPerception {
+    DepthPerception::with_model(Box::new(dkrrt_visual::LearnedAxes::new(net)))
+}
+
 /// The scenario's trained deep model: the file of `predictor.model`, or the embedded one.
 /// Errors name the field and what is wrong with the file (format, version, checksum, ...).
 pub fn load_trained(sc: &Scenario) -> Result<TrainedModels, String> {
@@ -236,7 +241,7 @@ impl PredictorCore {
                 Some(p) => dkrrt_visual::file::load(&p).map_err(|e| format!("predictor.visual_model {e}"))?,
                 None => embedded_visual()?,
             };
-            core.perception = DepthPerception::with_model(Box::new(dkrrt_visual::LearnedAxes::new(net)));
+            core.perception = learned_perception(net);
         }
         Ok(core)
     }
