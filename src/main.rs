@@ -354,6 +354,11 @@ enum Cmd {
         /// the shipped network, trained offline).
         #[arg(long)]
         train_deep: bool,
+        /// Build every episode on this scenario file instead of the embedded default: its
+        /// camera, limits, predictor and planner settings (its `[episode]` is replaced by each
+        /// generated one, its debris scene by the episode's).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
     },
 }
 
@@ -539,7 +544,19 @@ fn main() -> ExitCode {
             )
             .map(|_| true)
         }
-        Cmd::Study { scenes, size, episodes, methods, seed, json, out, threads, goal, train_deep } => {
+        Cmd::Study {
+            scenes,
+            size,
+            episodes,
+            methods,
+            seed,
+            json,
+            out,
+            threads,
+            goal,
+            train_deep,
+            scenario,
+        } => {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
             let episodes = episodes.unwrap_or(match size.as_str() {
@@ -564,7 +581,10 @@ fn main() -> ExitCode {
                 threads,
                 pose_goals: goal == "pose",
                 train_deep,
+                scenario: scenario.map(|p| p.display().to_string()),
             };
+            // A bad base scenario is reported before anything runs.
+            dkrrt::study::base_scenario_of(&opts)?;
             let rows_path = match (&out, &json) {
                 (Some(d), _) => Some(d.join("rows.jsonl")),
                 (None, Some(p)) => Some(p.with_extension("rows.jsonl")),
@@ -588,6 +608,7 @@ fn main() -> ExitCode {
             let info = dkrrt::study_report::RunInfo::now(&opts, &size, &goal, wall_s);
             let doc = serde_json::json!({
                 "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal,
+                "scenario": opts.scenario.as_deref().unwrap_or("<embedded default>"),
                 "run": info, "split": dkrrt::study_report::split_text(&opts), "summary": summary, "rows": rows,
             });
             let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;

@@ -114,14 +114,34 @@ pub struct StudyOptions {
     /// Train the deep attitude network first (as `dkrrt train` does, timed) and plan dk-rrt
     /// on it, instead of the shipped one.
     pub train_deep: bool,
+    /// The scenario file the episodes are built on (its camera, limits, predictor and
+    /// planner settings; its `[episode]` is replaced by each generated one); `None`: the
+    /// embedded default.
+    pub scenario: Option<String>,
 }
 
 /// The base scenario of every episode: the embedded default, with the predictor fitted on
 /// generic scenes and real-time options off (lockstep).
 pub fn base_scenario() -> Scenario {
-    let mut sc = Scenario::default_scenario();
+    as_study_base(Scenario::default_scenario())
+}
+
+/// The base scenario of the study's episodes: [`StudyOptions::scenario`] or the embedded
+/// default, made a study base as [`base_scenario`] is.
+pub fn base_scenario_of(opts: &StudyOptions) -> Result<Scenario, String> {
+    match &opts.scenario {
+        None => Ok(base_scenario()),
+        Some(path) => {
+            let sc = Scenario::load(path).map_err(|e| format!("--scenario: {e}"))?;
+            Ok(as_study_base(sc))
+        }
+    }
+}
+
+fn as_study_base(mut sc: Scenario) -> Scenario {
     sc.predictor.fit = "generic".into();
     sc.run.mode = dkrrt_config::Mode::Lockstep;
+    sc.episode = None;
     sc
 }
 
@@ -328,7 +348,7 @@ pub fn run(
             ));
         }
     }
-    let base = base_scenario();
+    let base = base_scenario_of(opts)?;
     let trained = if opts.train_deep {
         // As `dkrrt train` with its defaults: the same data, the same network.
         let t = std::time::Instant::now();
@@ -489,7 +509,7 @@ pub fn trace_episode(
     index: u64,
     method: &str,
 ) -> Result<crate::figures::EpisodeTrace, String> {
-    let base = base_scenario();
+    let base = base_scenario_of(opts)?;
     let fit =
         fits.iter().find(|f| f.planner_method == method).ok_or_else(|| format!("no fit for {method}"))?;
     let (sc, ep) = episode_scenario(&base, scene, index, opts.seed, opts.pose_goals)?;

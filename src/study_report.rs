@@ -322,7 +322,7 @@ impl RunInfo {
 
 /// What every model saw and what was evaluated (the no-leakage split), as stated in the output.
 pub fn split_text(opts: &crate::study::StudyOptions) -> String {
-    let b = crate::study::base_scenario();
+    let b = crate::study::base_scenario_of(opts).unwrap_or_else(|_| crate::study::base_scenario());
     format!(
         "Evaluated: threat episodes of {} (indices 0..{}) generated from seed {} (start, goal and the debris' initial states drawn per episode and integrated backwards from their aim points); no model sees any of them before it runs. \
          Forecast models (cv, EDMD, the translation and dual-data parts of dk-rrt): fitted once at start-up on {} runs of generic random scenes (seeds {}.., random objects of every shape, not the named scenes, not an episode). \

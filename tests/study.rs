@@ -162,10 +162,55 @@ fn no_episode_reaches_the_models_the_study_plans_with() {
         threads: 1,
         pose_goals: false,
         train_deep: false,
+        scenario: None,
     };
     let split = dkrrt::study_report::split_text(&opts);
     assert!(
         split.contains("seed 11") && split.contains("generic random scenes") && split.contains("never"),
         "{split}"
     );
+}
+
+#[test]
+fn a_study_builds_its_episodes_on_the_scenario_file_it_is_given() {
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/camera-rig.toml");
+    let opts = |scenario: Option<&str>| dkrrt::study::StudyOptions {
+        scenes: vec!["dense".into()],
+        episodes: 1,
+        methods: vec!["dk-rrt-depth".into()],
+        seed: 5,
+        threads: 1,
+        pose_goals: false,
+        train_deep: false,
+        scenario: scenario.map(str::to_string),
+    };
+    let base = dkrrt::study::base_scenario_of(&opts(Some(rig))).unwrap();
+    // The file's camera and input, made a study base: lockstep, generic fits, no episode of
+    // its own.
+    assert_eq!((base.camera.faces, base.predictor.input.as_str()), (6, "depth"));
+    assert_eq!(base.camera.position_m, [0.0, 0.0, -0.8]);
+    assert_eq!(base.run.mode, dkrrt_config::Mode::Lockstep);
+    assert_eq!(base.predictor.fit, "generic");
+    assert!(base.episode.is_none());
+    // Each episode replaces the debris, start and goal and keeps the rest of the file.
+    let (sc, ep) = dkrrt::study::episode_scenario(&base, "dense", 0, 5, false).unwrap();
+    let (plain, plain_ep) =
+        dkrrt::study::episode_scenario(&dkrrt::study::base_scenario(), "dense", 0, 5, false).unwrap();
+    assert_eq!(sc.camera.faces, 6);
+    assert_eq!(plain.camera.faces, 1);
+    assert_eq!(ep.straight_duration_s, plain_ep.straight_duration_s, "the same episode on either base");
+    assert_eq!((ep.start, ep.goal), (plain_ep.start, plain_ep.goal));
+    // Without a file: the embedded default.
+    assert_eq!(dkrrt::study::base_scenario_of(&opts(None)).unwrap().camera.faces, 1);
+    // A file that is not there is named, before anything runs.
+    let missing = std::env::temp_dir().join(format!("dkrrt-no-such-{}.toml", std::process::id()));
+    let e = dkrrt::study::base_scenario_of(&opts(Some(missing.to_str().unwrap()))).unwrap_err();
+    assert!(e.contains("--scenario") && e.contains("dkrrt-no-such"), "{e}");
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .args(["study", "--episodes", "1", "--scenes", "dense", "--scenario"])
+        .arg(&missing)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("dkrrt-no-such"), "{err}");
 }
