@@ -50,7 +50,7 @@ pub fn record_depth(
     let (rate, latency) = (cams[0].rate_hz, cams[0].latency_s);
     let mut frame = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut per = front_end();
-    let mut obs = Vec::new();
+    let (mut obs, mut obs_shapes) = (Vec::new(), Vec::new());
     let (mut ep, mut ea) = (Vec::new(), Vec::new());
     each_capture(&mut world, duration, sim_dt, rate, &mut rdr, |capture, t, _, img, _| {
         let n = per.convert(img, &mut frame);
@@ -66,6 +66,7 @@ pub fn record_depth(
                 has_rates: false,
                 seq: capture as u32,
             });
+            obs_shapes.push((it.shape, it.bounding_radius));
             if let Some(x) = rec.truth.at(it.id, t) {
                 ep.push(
                     ((it.p[0] - x[0]).powi(2) + (it.p[1] - x[1]).powi(2) + (it.p[2] - x[2]).powi(2)).sqrt(),
@@ -78,6 +79,7 @@ pub fn record_depth(
         }
     });
     rec.obs = obs;
+    rec.obs_shapes = obs_shapes;
     let med = |v: &mut Vec<f64>| dkrrt_predictor::eval::median(v);
     Ok((rec, [med(&mut ep), med(&mut ea)]))
 }

@@ -141,7 +141,18 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
 pub fn for_depth(cfg: &mut PredictorConfig) {
     cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
     cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
+    cfg.filter.outlier_sigmas = DEPTH_OUTLIER_SIGMAS;
+    cfg.event_persist = 2;
+    cfg.pos_sigma_per_m = DEPTH_POS_SIGMA_PER_M;
+    cfg.track_sigmas = 3.0;
+    cfg.revive_s = 5.0;
 }
+
+/// [`dkrrt_predictor::predictor::PredictorConfig::pos_sigma_per_m`] for poses from depth frames.
+pub const DEPTH_POS_SIGMA_PER_M: f64 = 0.08;
+
+/// [`dkrrt_predictor::filter::FilterConfig::outlier_sigmas`] for poses from depth frames.
+pub const DEPTH_OUTLIER_SIGMAS: f64 = 3.0;
 
 /// The measurement noise the predictor's filter assumes for poses from depth frames, m.
 pub const DEPTH_POS_SIGMA_M: f64 = 0.05;

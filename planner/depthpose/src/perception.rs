@@ -10,7 +10,7 @@
 //! * **Shape**, from those spreads (points spread evenly over an extent 2a have σ = a/√3; a
 //!   ball's visible cap spreads σ = r/2 sideways): a rod is a capsule of half length √3·σ₀
 //!   and radius 2σ₁ (≥ 2 cm), a panel a box of half extents √3·σ (≥ 1 cm thick), a bulky
-//!   object a sphere of radius 2σ₀.
+//!   object a sphere of radius max(2σ₀, √3·|σ|) (a ball, or the corners of a chunky box).
 //! * **Position**: the centroid of the visible surface lies in front of a bulky object's
 //!   centre (a ball's by 2r/3, when its cap's thinnest spread is 0.236 r): it is moved back
 //!   along the camera ray by 2.83 × the thinnest spread. A rod's or a panel's visible centroid
@@ -173,7 +173,10 @@ pub fn shape_of(c: Class, s: &[f64; 3], margin: f64) -> (DebrisShape, f64) {
             (DebrisShape::cuboid(e, [0.0; 3]), (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
         }
         Class::Bulky => {
-            let r = (2.0 * s[0]).max(0.01) + m;
+            // A ball's cap spreads r/2; a chunky box's faces spread about its half extents
+            // over √3, so its corners lie √3·|σ| out: the sphere covers either.
+            let corner = r3 * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+            let r = (2.0 * s[0]).max(corner).max(0.01) + m;
             (DebrisShape::sphere(r), r)
         }
     }

@@ -248,3 +248,52 @@ fn a_learned_axis_model_makes_a_strip_a_box_with_its_long_side_along_body_x() {
     assert_eq!(ShapeKind::from_u32(out.items[0].shape.kind), Some(ShapeKind::Capsule));
     assert_eq!(small.stats.learned, 0);
 }
+
+/// A chunky box has no thin side, so it is read as bulky: its sphere must reach its corners,
+/// not only a ball's visible cap; with the default margin (the centre's own error) the whole
+/// box lies inside the reported sphere.
+#[test]
+fn a_chunky_box_read_as_bulky_is_held_by_its_sphere() {
+    use dkrrt_camera::scene::Object;
+    let h: [f64; 3] = [0.25, 0.2, 0.225];
+    let corner = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+    for k in 0..12 {
+        let a = 0.5 * k as f64;
+        let v = [a.cos(), 0.3 * a.sin(), 0.5, 0.2 * (1.7 * a).cos()];
+        let m = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let q = v.map(|x| x / m);
+        let p = [4.0, 0.3 * a.sin(), -0.2];
+        let objects: Vec<Object> = vec![(1, cuboid(h), p, q, corner)];
+        let img = render(&objects, &exact(), 0.05 * k as f64);
+        let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+        let mut bare = DepthPerception::default();
+        bare.margin_m = 0.0;
+        assert_eq!(bare.convert(&img, &mut out), 1);
+        let it = out.items[0];
+        assert_eq!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Sphere), "{it:?}");
+        assert!(
+            it.bounding_radius >= 0.95 * corner,
+            "frame {k}: radius {} < corner {corner}",
+            it.bounding_radius
+        );
+        let mut per = DepthPerception::default();
+        assert_eq!(per.convert(&img, &mut out), 1);
+        let it = out.items[0];
+        let far = (0..8)
+            .map(|c| {
+                let l = [0, 1, 2].map(|i| if c >> i & 1 == 1 { h[i] } else { -h[i] });
+                let r = dkrrt_collision::pose::quat_rotate(&q, &l);
+                (0..3).map(|i| (p[i] + r[i] - it.p[i]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            far <= it.bounding_radius,
+            "frame {k}: a corner {far:.3} m out, radius {:.3}",
+            it.bounding_radius
+        );
+    }
+}
+
+fn cuboid(h: [f64; 3]) -> parry3d_f64::shape::SharedShape {
+    parry3d_f64::shape::SharedShape::cuboid(h[0], h[1], h[2])
+}

@@ -218,6 +218,11 @@ pub struct Recording {
     /// Shape descriptor and bounding radius of every object that appeared (what a perception
     /// driver reports per id).
     pub shapes: Vec<(u32, DebrisShape, f64)>,
+    /// The shape and bounding radius each observation reported, when they are estimates (a
+    /// depth front end's, parallel to `obs`); empty: the observations carry the true shapes.
+    /// Forecasts are then published, and scored, with each object's latest estimate against
+    /// its true shape, as the planner receives them.
+    pub obs_shapes: Vec<(DebrisShape, f64)>,
 }
 
 /// The named scene with seeded perturbations of every object's initial state: position
@@ -269,6 +274,7 @@ pub fn record(
         mean_motion: world.orbit().mean_motion(),
         obs: Vec::new(),
         shapes: Vec::new(),
+        obs_shapes: Vec::new(),
     };
     for k in 0..=steps {
         if k > 0 {
@@ -355,17 +361,22 @@ pub struct Errors {
 
 /// The published bound of forecast `j`, `k` steps ahead, and the true shape's excess over the
 /// predicted shape as the planner reads it: `(bound, excess)`, m. The predicted pose and bound
-/// are built as the predictor process publishes them (a rod: its axis by precession).
+/// are built as the predictor process publishes them (a rod: its axis by precession), with
+/// the shape published (`shape`, `radius`: an estimate, or the true one); the truth is the
+/// true shape (`true_shape`, `true_radius`) at the true pose.
+#[allow(clippy::too_many_arguments)]
 pub fn surface_sample(
     buf: &ForecastBuffer,
     j: usize,
     k: usize,
     shape: &DebrisShape,
     radius: f64,
+    true_shape: &DebrisShape,
+    true_radius: f64,
     truth: &[f64; N],
 ) -> (f64, f64) {
     use dkrrt_collision::bounds::{
-        attitude_channel, sphere_is_tighter, surface_excess, surface_sigma, AttitudeChannel,
+        attitude_channel, shape_excess, sphere_is_tighter, surface_sigma, AttitudeChannel,
     };
     let x = buf.state(j, k);
     let mut q = buf.attitude(j, k);
@@ -377,10 +388,11 @@ pub fn surface_sample(
     let sigma = surface_sigma(shape, radius, pos, buf.attitude_radius(j, k), buf.axis_radius(j, k));
     let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
     if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
-        let d = ((p[0] - pt[0]).powi(2) + (p[1] - pt[1]).powi(2) + (p[2] - pt[2]).powi(2)).sqrt();
-        (pos, d)
+        // The bounding sphere of the published radius, inflated by the position bound.
+        let ball = DebrisShape::default();
+        (pos, shape_excess(&ball, radius, &p, &q, true_shape, true_radius, &pt, &qt))
     } else {
-        (sigma, surface_excess(shape, &p, &q, &pt, &qt))
+        (sigma, shape_excess(shape, radius, &p, &q, true_shape, true_radius, &pt, &qt))
     }
 }
 
@@ -401,16 +413,34 @@ pub fn evaluate(
     out.att_sym.resize(horizons.len(), Vec::new());
     out.surface.resize(horizons.len(), Vec::new());
     let mut next_eval = warmup;
+    // The latest shape estimate per id (estimated shapes only).
+    let mut seen: Vec<(u32, DebrisShape, f64)> = Vec::new();
     for (i, o) in rec.obs.iter().enumerate() {
-        pred.observe(o);
+        let accepted = !matches!(pred.observe(o), crate::predictor::ObserveOutcome::Rejected(_));
+        if let (true, Some(&(sh, r))) = (accepted, rec.obs_shapes.get(i)) {
+            match seen.iter_mut().find(|e| e.0 == o.id) {
+                Some(e) => (e.1, e.2) = (sh, r),
+                None => seen.push((o.id, sh, r)),
+            }
+        }
         // Forecast once all records available at this arrival time are in.
         let batch_done = rec.obs.get(i + 1).is_none_or(|n| n.t_avail > o.t_avail);
         if !(batch_done && o.t_avail >= next_eval) {
             continue;
         }
         next_eval += eval_every;
-        for (id, shape, _) in &rec.shapes {
-            pred.set_shape(*id, shape);
+        let published = |id: u32| {
+            seen.iter()
+                .find(|e| e.0 == id)
+                .or_else(|| {
+                    rec.obs_shapes.is_empty().then(|| rec.shapes.iter().find(|e| e.0 == id)).flatten()
+                })
+                .map(|e| (e.1, e.2))
+        };
+        for (id, _, _) in &rec.shapes {
+            if let Some((shape, _)) = published(*id) {
+                pred.set_shape(*id, &shape);
+            }
         }
         pred.forecast(&mut buf);
         for j in 0..buf.len() {
@@ -426,7 +456,8 @@ pub fn evaluate(
                 out.att[hj].push(quat_angle(&x[6..10], &truth[6..10]));
                 if let Some((_, shape, r)) = rec.shapes.iter().find(|s| s.0 == buf.id(j)) {
                     out.att_sym[hj].push(symmetric_angle(&x[6..10], &truth[6..10], shape));
-                    out.surface[hj].push(surface_sample(&buf, j, k, shape, *r, &truth));
+                    let (est, er) = published(buf.id(j)).unwrap_or((DebrisShape::default(), *r));
+                    out.surface[hj].push(surface_sample(&buf, j, k, &est, er, shape, *r, &truth));
                 }
             }
         }

@@ -53,6 +53,14 @@ pub struct FilterConfig {
     pub vel_sigma: f64,
     /// Body-rate measurement std-dev per axis [rad/s] (sensors that report rates).
     pub rate_sigma: f64,
+    /// Robust position update for heavy-tailed poses (e.g. poses from depth frames, whose
+    /// centroid now and then jumps with the visible side): a pose whose innovation lies more
+    /// than this many standard deviations (of the predicted innovation, per axis) out pulls
+    /// the estimate as if its noise were that much larger (Huber), and adds at most this
+    /// many squared deviations to the manoeuvre test's average, so one outlier neither drags
+    /// the track nor re-opens its velocity; a manoeuvre shows as a run of large innovations.
+    /// `f64::INFINITY` (the default): the plain Kalman update.
+    pub outlier_sigmas: f64,
 }
 
 /// Default translational acceleration PSD (see the README's tuning sweep).
@@ -73,6 +81,7 @@ impl Default for FilterConfig {
             maneuver_vel_sigma: 0.3,
             vel_sigma: 0.005,
             rate_sigma: 0.01,
+            outlier_sigmas: f64::INFINITY,
         }
     }
 }
@@ -215,6 +224,14 @@ impl TrackFilter {
         }
     }
 
+    /// The filter's own standard deviation of the position, per axis, `tau` seconds after the
+    /// last update (its covariance propagated with the constant-velocity model), m.
+    pub fn pos_std(&self, cfg: &FilterConfig, tau: f64) -> f64 {
+        let mut p = self.pos;
+        p.predict(tau.max(0.0), cfg.accel_psd);
+        p.p00.max(0.0).sqrt()
+    }
+
     /// Predicted state at time `t ≥ self.t` (Clohessy–Wiltshire translation, constant body
     /// rate), without updating.
     pub fn predicted(&self, cfg: &FilterConfig, t: f64) -> [f64; N] {
@@ -223,22 +240,32 @@ impl TrackFilter {
 
     /// Measurement update with a pose at time `t > self.t`.
     pub fn update(&mut self, cfg: &FilterConfig, t: f64, p: &[f64; 3], q: &[f64; 4]) {
+        self.update_with(cfg, cfg.pos_sigma, t, p, q);
+    }
+
+    /// [`TrackFilter::update`] with this pose's own position noise `pos_sigma` (m, per axis)
+    /// in place of the configured one.
+    pub fn update_with(&mut self, cfg: &FilterConfig, pos_sigma: f64, t: f64, p: &[f64; 3], q: &[f64; 4]) {
         let dt = t - self.t;
         debug_assert!(dt > 0.0);
         let xp = self.predicted(cfg, t);
         // Translation.
         self.pos.predict(dt, cfg.accel_psd);
-        let r = cfg.pos_sigma.powi(2);
+        let mut r = pos_sigma.powi(2);
         let y = [p[0] - xp[0], p[1] - xp[1], p[2] - xp[2]];
         let nu = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) / (3.0 * (self.pos.p00 + r));
+        let c2 = cfg.outlier_sigmas.powi(2);
         let a = 1.0 / cfg.maneuver_window.max(1.0);
-        self.nis += a * (nu - self.nis);
+        self.nis += a * (nu.min(c2) - self.nis);
         if self.nis > cfg.maneuver_nis {
             // Manoeuvre: re-open the velocity (and let this pose pull the position).
             self.pos.p11 = self.pos.p11.max(cfg.maneuver_vel_sigma.powi(2));
             self.pos.p00 = self.pos.p00.max(r);
             self.nis = 1.0;
             self.maneuvers += 1;
+        } else if nu > c2 {
+            // An outlier: weighed as a pose whose innovation lies c deviations out.
+            r = (self.pos.p00 + r) * nu / c2 - self.pos.p00;
         }
         let (k0, k1) = self.pos.update(r);
         for i in 0..3 {

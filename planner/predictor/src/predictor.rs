@@ -50,8 +50,27 @@ pub struct PredictorConfig {
     pub event_pos_noise: f64,
     /// Event: attitude noise allowance [rad].
     pub event_att_noise: f64,
+    /// Position noise of a pose per metre of the object's size (its shape's bounding radius,
+    /// [`DebrisPredictor::set_shape`]): the filter takes `max(filter.pos_sigma, this · size)`.
+    /// 0 for the pose sensor; poses from depth frames: the visible side moves the centroid by
+    /// a share of the object's size.
+    pub pos_sigma_per_m: f64,
+    /// The published position bound is at least this many of the track filter's own position
+    /// deviations at each horizon ([`TrackFilter::pos_std`]: a young track's velocity is
+    /// still uncertain, which the model's bound does not know). 0: off (the pose sensor,
+    /// whose tracks converge within a few samples); poses from depth frames: 3.
+    pub track_sigmas: f64,
+    /// A dropped track whose object is seen again within this many seconds of its last pose
+    /// is taken up again, its filter coasted over the gap (its covariance grown with it),
+    /// instead of starting over with an unknown velocity. 0: off (the pose sensor sees every
+    /// object every frame); poses from depth frames: objects pass behind the arm and out of
+    /// the views.
+    pub revive_s: f64,
     /// Event: minimum time between two events of one track and channel [s].
     pub event_refractory: f64,
+    /// Event: the test must fail on this many model pairs in a row (1: any one; poses from
+    /// depth frames: 2, so one outlying pose is not taken for an impulse).
+    pub event_persist: u32,
     /// Event: no event tests before a track has this many observations (filter transient).
     pub event_min_obs: u32,
     /// Tracks need this many accepted observations before they are forecast.
@@ -100,6 +119,10 @@ impl Default for PredictorConfig {
             event_pos_noise: 0.05,
             event_att_noise: 0.08,
             event_refractory: 0.5,
+            event_persist: 1,
+            pos_sigma_per_m: 0.0,
+            track_sigmas: 0.0,
+            revive_s: 0.0,
             event_min_obs: 25,
             min_obs_for_forecast: 5,
         }
@@ -153,6 +176,9 @@ pub struct GateStats {
     pub reinit: u64,
     /// Tracks dropped after the timeout.
     pub tracks_dropped: u64,
+    /// Dropped tracks taken up again by their object's next pose
+    /// ([`PredictorConfig::revive_s`]).
+    pub revived: u64,
     /// Detected events (one-step residual beyond the bound), position or attitude.
     pub events: u64,
     /// One-step model pairs processed (residual test and, for online methods, RLS).
@@ -184,6 +210,10 @@ struct Track {
     pos_bound: ErrorBound,
     att_bound: ErrorBound,
     last_event_t: [f64; 2],
+    /// The object's size (its shape's bounding radius, m; 0: not known).
+    size: f64,
+    /// Model pairs in a row whose residual failed the event test, per channel.
+    event_run: [u32; 2],
     events: u32,
     last_residual: [f64; 2],
     axis: AxisChannel,
@@ -375,6 +405,8 @@ impl DebrisPredictor {
             pos_bound: models.pos_bound.clone(),
             att_bound: models.att_bound.clone(),
             last_event_t: [f64::NEG_INFINITY; 2],
+            event_run: [0; 2],
+            size: 0.0,
             events: 0,
             last_residual: [f64::NAN; 2],
             axis: AxisChannel::new(),
@@ -406,6 +438,7 @@ impl DebrisPredictor {
     pub fn set_shape(&mut self, id: u32, shape: &dkrrt_msg::DebrisShape) {
         if let Some(s) = self.slot_of(id) {
             self.tracks[s].euler.set_inertia(crate::euler::inertia_hint(shape));
+            self.tracks[s].size = shape.bounding_radius();
         }
     }
 
@@ -469,6 +502,21 @@ impl DebrisPredictor {
         n
     }
 
+    /// A slot for a new track: the first inactive one; with revival on, one whose track can no
+    /// longer be revived, if any.
+    fn free_slot(&self, t: f64) -> Option<usize> {
+        let free = |i: &usize| !self.tracks[*i].active;
+        let stale =
+            |i: &usize| t - self.tracks[*i].filter.t > self.cfg.revive_s || self.tracks[*i].n_obs == 0;
+        let mut idx = 0..self.tracks.len();
+        if self.cfg.revive_s > 0.0 {
+            if let Some(i) = idx.clone().filter(free).find(stale) {
+                return Some(i);
+            }
+        }
+        idx.find(free)
+    }
+
     fn init_track(&mut self, slot: usize, o: &Observation) {
         let cfg = &self.cfg;
         let m = &self.models;
@@ -498,6 +546,7 @@ impl DebrisPredictor {
         tr.pos_bound.clone_from(&m.pos_bound);
         tr.att_bound.clone_from(&m.att_bound);
         tr.last_event_t = [f64::NEG_INFINITY; 2];
+        tr.event_run = [0; 2];
         tr.events = 0;
         tr.last_residual = [f64::NAN; 2];
         tr.axis = AxisChannel::new();
@@ -505,6 +554,7 @@ impl DebrisPredictor {
             tr.euler.restart();
         } else {
             tr.euler = EulerChannel::new();
+            tr.size = 0.0;
         }
         tr.score.clear();
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
@@ -522,9 +572,22 @@ impl DebrisPredictor {
             self.t_latest = o.t;
             self.prune(o.t);
         }
+        let revive = |t: &Track| {
+            !t.active
+                && t.id == o.id
+                && t.n_obs > 0
+                && o.t > t.filter.t
+                && o.t - t.filter.t <= self.cfg.revive_s
+        };
         let slot = match self.slot_of(o.id) {
             Some(s) => s,
-            None => match self.tracks.iter().position(|t| !t.active) {
+            None if self.tracks.iter().any(revive) => {
+                let s = self.tracks.iter().position(revive).expect("found");
+                self.tracks[s].active = true;
+                self.stats.revived += 1;
+                s
+            }
+            None => match self.free_slot(o.t) {
                 Some(s) => {
                     self.init_track(s, o);
                     self.stats.accepted += 1;
@@ -575,14 +638,19 @@ impl DebrisPredictor {
         }
         tr.rejects = 0;
         let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
-        tr.filter.update(&cfg.filter, o.t, &o.p, &q);
+        let sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
+        // Of a position residual, what this pose's own noise explains beyond the event test's
+        // fixed allowance (three of its deviations; 0 for the pose sensor): a residual widens
+        // the bound only by what lies beyond it.
+        let extra = (3.0 * sigma - cfg.event_pos_noise).max(0.0);
+        tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, &q);
         if o.has_rates {
             tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
         }
         if tr.filter.maneuvers > man0 {
             // The velocity changed: widen the position bound by the innovation, spread as a
             // velocity error over the averaging window of the test.
-            let y = (0..3).map(|i| (o.p[i] - xprior[i]).powi(2)).sum::<f64>().sqrt();
+            let y = (0..3).map(|i| (o.p[i] - xprior[i]).powi(2)).sum::<f64>().sqrt() - extra;
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
             self.stats.maneuvers += 1;
         }
@@ -642,13 +710,21 @@ impl DebrisPredictor {
             tr.last_residual = [rp, ra];
             // Position and attitude channels have their own refractory period.
             let armed = tr.n_obs >= cfg.event_min_obs;
-            let ev_p = armed
-                && o.t - tr.last_event_t[0] >= cfg.event_refractory
-                && tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise, cfg.event_factor);
-            let ev_a = armed
-                && o.t - tr.last_event_t[1] >= cfg.event_refractory
-                && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor);
+            let fails = [
+                tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise - extra, cfg.event_factor),
+                tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
+            ];
+            for c in 0..2 {
+                tr.event_run[c] = if fails[c] { tr.event_run[c] + 1 } else { 0 };
+            }
+            let fire = |c: usize| {
+                armed
+                    && o.t - tr.last_event_t[c] >= cfg.event_refractory
+                    && tr.event_run[c] >= cfg.event_persist
+            };
+            let (ev_p, ev_a) = (fire(0), fire(1));
             if ev_p {
+                let rp = rp - extra;
                 tr.pos_bound.grow(rp, rp / dt);
                 tr.rls_t.reset_covariance();
                 tr.last_event_t[0] = o.t;
@@ -742,6 +818,14 @@ impl DebrisPredictor {
                 } else {
                     buf.pos_radius[o] = buf.pos_radius[o].max(last.0);
                     buf.att_radius[o] = buf.att_radius[o].max(last.1);
+                }
+            }
+            if self.cfg.track_sigmas > 0.0 {
+                let fc = &self.cfg.filter;
+                for s in 1..=h {
+                    let o = k * hb + s - 1;
+                    let own = self.cfg.track_sigmas * tr.filter.pos_std(fc, s as f64 * buf.dt);
+                    buf.pos_radius[o] = buf.pos_radius[o].max(own);
                 }
             }
             if tr.n_obs >= self.cfg.calib_min_obs {

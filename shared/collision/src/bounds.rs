@@ -114,6 +114,85 @@ pub fn surface_excess(
     }
 }
 
+/// The smallest `s` such that the true shape `truth` (pose `p_true`, `q_true`) lies inside
+/// the predicted shape `pred` (another descriptor: e.g. what a perception front end
+/// estimated; pose `p_pred`, `q_pred`) inflated by `s`, m (0 when it lies inside as it is).
+/// Each shape is a core swept by a ball (a sphere: its centre and radius; a capsule: its
+/// axis segment and radius; a box: itself and 0; unknown: the body origin and its bounding
+/// radius). The distance to the inflated predicted shape is convex, so its largest value
+/// over the true shape is at a ball around an extreme point of the true core (centre, axis
+/// ends, corners): from a point or a segment, that ball's farthest point lies its radius
+/// beyond the point's own distance; from a box, the same for a point outside, and for a
+/// point inside the radius less the point's depth below the nearest face. Exact. With
+/// `pred == truth` it is [`surface_excess`].
+#[allow(clippy::too_many_arguments)]
+pub fn shape_excess(
+    pred: &DebrisShape,
+    pred_radius: f64,
+    p_pred: &[f64; 3],
+    q_pred: &[f64; 4],
+    truth: &DebrisShape,
+    true_radius: f64,
+    p_true: &[f64; 3],
+    q_true: &[f64; 4],
+) -> f64 {
+    let at = |sh: &DebrisShape, p: &[f64; 3], q: &[f64; 4], local: &[f64; 3]| {
+        let l = [local[0] + sh.offset[0], local[1] + sh.offset[1], local[2] + sh.offset[2]];
+        let r = quat_rotate(q, &l);
+        [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
+    };
+    let d = &pred.dims;
+    // The farthest distance from the ball (x, r) to the predicted core, and the predicted
+    // core's radius.
+    #[allow(clippy::type_complexity)]
+    let (pred_r, to_pred): (f64, Box<dyn Fn(&[f64; 3], f64) -> f64>) = match ShapeKind::from_u32(pred.kind) {
+        Some(ShapeKind::Sphere) => {
+            let c = at(pred, p_pred, q_pred, &[0.0; 3]);
+            (d[0], Box::new(move |x, r| crate::dist(&c, x) + r))
+        }
+        Some(ShapeKind::Capsule) => {
+            let (a, b) =
+                (at(pred, p_pred, q_pred, &[0.0, 0.0, -d[0]]), at(pred, p_pred, q_pred, &[0.0, 0.0, d[0]]));
+            (d[1], Box::new(move |x, r| crate::seg_point(&a, &b, x) + r))
+        }
+        Some(ShapeKind::Box) => {
+            let (o, qc, h) =
+                (at(pred, p_pred, q_pred, &[0.0; 3]), [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]], *d);
+            (
+                0.0,
+                Box::new(move |x, r| {
+                    let l = quat_rotate(&qc, &[x[0] - o[0], x[1] - o[1], x[2] - o[2]]);
+                    let out = (0..3).map(|i| (l[i].abs() - h[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
+                    if out > 0.0 {
+                        out + r
+                    } else {
+                        r - (0..3).map(|i| h[i] - l[i].abs()).fold(f64::INFINITY, f64::min)
+                    }
+                }),
+            )
+        }
+        _ => (pred_radius, Box::new(move |x, r| crate::dist(p_pred, x) + r)),
+    };
+    let t = &truth.dims;
+    let mut worst = f64::NEG_INFINITY;
+    let mut point = |x: [f64; 3], r: f64| worst = worst.max(to_pred(&x, r) - pred_r);
+    match ShapeKind::from_u32(truth.kind) {
+        Some(ShapeKind::Sphere) => point(at(truth, p_true, q_true, &[0.0; 3]), t[0]),
+        Some(ShapeKind::Capsule) => {
+            point(at(truth, p_true, q_true, &[0.0, 0.0, -t[0]]), t[1]);
+            point(at(truth, p_true, q_true, &[0.0, 0.0, t[0]]), t[1]);
+        }
+        Some(ShapeKind::Box) => {
+            for c in 0..8 {
+                let s = |i: usize| if c >> i & 1 == 1 { t[i] } else { -t[i] };
+                point(at(truth, p_true, q_true, &[s(0), s(1), s(2)]), 0.0);
+            }
+        }
+        _ => point(*p_true, true_radius),
+    }
+    worst.max(0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,6 +258,49 @@ mod tests {
         // Sphere: centre distance.
         let sp = shape(ShapeKind::Sphere, [0.4, 0.0, 0.0], [0.0; 3]);
         assert!((surface_excess(&sp, &p0, &id, &[0.0, 0.3, 0.4], &spin) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn excess_between_two_shapes() {
+        let id = [1.0, 0.0, 0.0, 0.0];
+        let p0 = [0.0; 3];
+        let rod = shape(ShapeKind::Capsule, [0.2, 0.05, 0.0], [0.0; 3]);
+        let ball = |r: f64| shape(ShapeKind::Sphere, [r, 0.0, 0.0], [0.0; 3]);
+        // A ball of 0.3 around a rod reaching 0.25 from the centre holds it; one of 0.2 misses
+        // its ends by 0.05.
+        assert_eq!(shape_excess(&ball(0.3), 0.3, &p0, &id, &rod, 0.25, &p0, &id), 0.0);
+        assert!((shape_excess(&ball(0.2), 0.2, &p0, &id, &rod, 0.25, &p0, &id) - 0.05).abs() < 1e-12);
+        // A unit cube's corners lie √3/2 out: a ball of 0.5 misses them by √3/2 − 0.5.
+        let cube = shape(ShapeKind::Box, [0.5, 0.5, 0.5], [0.0; 3]);
+        let e = shape_excess(&ball(0.5), 0.5, &p0, &id, &cube, 0.866, &p0, &id);
+        assert!((e - (0.75f64.sqrt() - 0.5)).abs() < 1e-12, "{e}");
+        // A ball inside a box estimated 0.1 too thin along x, shifted 0.1 along x.
+        let slab = shape(ShapeKind::Box, [0.2, 0.3, 0.3], [0.0; 3]);
+        let e = shape_excess(&slab, 0.5, &p0, &id, &ball(0.3), 0.3, &[0.1, 0.0, 0.0], &spin_z(0.4));
+        assert!((e - 0.2).abs() < 1e-12, "{e}");
+        // An unknown predicted shape is its bounding sphere.
+        let unknown = DebrisShape::default();
+        assert!((shape_excess(&unknown, 0.1, &p0, &id, &rod, 0.25, &p0, &id) - 0.15).abs() < 1e-12);
+        // The same shape on both sides: surface_excess, for random poses.
+        let shapes = [
+            shape(ShapeKind::Capsule, [0.8, 0.05, 0.0], [0.0, 0.0, 0.2]),
+            shape(ShapeKind::Box, [0.6, 0.3, 0.05], [0.1, -0.2, 0.0]),
+            shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3]),
+        ];
+        for (k, sh) in shapes.iter().enumerate() {
+            for j in 0..20 {
+                let a = 0.1 * (k * 20 + j) as f64;
+                let q = [(a / 2.0).cos(), (a / 2.0).sin() * 0.6, (a / 2.0).sin() * 0.8, 0.0];
+                let p = [0.1 * a.sin(), -0.05 * a, 0.2];
+                let r = sh.bounding_radius();
+                let two = shape_excess(sh, r, &p0, &id, sh, r, &p, &q);
+                assert!((two - surface_excess(sh, &p0, &id, &p, &q)).abs() < 1e-12, "{k} {j}");
+            }
+        }
+    }
+
+    fn spin_z(a: f64) -> [f64; 4] {
+        [(a / 2.0).cos(), 0.0, 0.0, (a / 2.0).sin()]
     }
 
     #[test]
