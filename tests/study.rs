@@ -154,16 +154,7 @@ fn no_episode_reaches_the_models_the_study_plans_with() {
         assert_eq!(m.att.ab, plain.att.ab, "{scene} #{index}: attitude model");
     }
     // The split is stated with the output.
-    let opts = dkrrt::study::StudyOptions {
-        scenes: vec!["dense".into()],
-        episodes: 4,
-        methods: vec!["dk-rrt".into()],
-        seed: 11,
-        threads: 1,
-        pose_goals: false,
-        train_deep: false,
-        scenario: None,
-    };
+    let opts = dense_options(4, "dk-rrt", 11, None);
     let split = dkrrt::study_report::split_text(&opts);
     assert!(
         split.contains("seed 11") && split.contains("generic random scenes") && split.contains("never"),
@@ -174,16 +165,7 @@ fn no_episode_reaches_the_models_the_study_plans_with() {
 #[test]
 fn a_study_builds_its_episodes_on_the_scenario_file_it_is_given() {
     let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/camera-rig.toml");
-    let opts = |scenario: Option<&str>| dkrrt::study::StudyOptions {
-        scenes: vec!["dense".into()],
-        episodes: 1,
-        methods: vec!["dk-rrt-depth".into()],
-        seed: 5,
-        threads: 1,
-        pose_goals: false,
-        train_deep: false,
-        scenario: scenario.map(str::to_string),
-    };
+    let opts = |scenario: Option<&str>| dense_options(1, "dk-rrt-depth", 5, scenario);
     let base = dkrrt::study::base_scenario_of(&opts(Some(rig))).unwrap();
     // The file's camera and input, made a study base: lockstep, generic fits, no episode of
     // its own.
@@ -213,4 +195,23 @@ fn a_study_builds_its_episodes_on_the_scenario_file_it_is_given() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("dkrrt-no-such"), "{err}");
+}
+
+/// Study options of one method on the dense scene, one thread, joint goals.
+fn dense_options(
+    episodes: u64,
+    method: &str,
+    seed: u64,
+    scenario: Option<&str>,
+) -> dkrrt::study::StudyOptions {
+    dkrrt::study::StudyOptions {
+        scenes: vec!["dense".into()],
+        episodes,
+        methods: vec![method.into()],
+        seed,
+        threads: 1,
+        pose_goals: false,
+        train_deep: false,
+        scenario: scenario.map(str::to_string),
+    }
 }
