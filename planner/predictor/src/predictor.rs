@@ -581,23 +581,24 @@ impl DebrisPredictor {
         };
         let slot = match self.slot_of(o.id) {
             Some(s) => s,
-            None if self.tracks.iter().any(revive) => {
-                let s = self.tracks.iter().position(revive).expect("found");
-                self.tracks[s].active = true;
-                self.stats.revived += 1;
-                s
-            }
-            None => match self.free_slot(o.t) {
+            None => match self.tracks.iter().position(revive) {
                 Some(s) => {
-                    self.init_track(s, o);
-                    self.stats.accepted += 1;
-                    self.stats.tracks_created += 1;
-                    return ObserveOutcome::NewTrack;
+                    self.tracks[s].active = true;
+                    self.stats.revived += 1;
+                    s
                 }
-                None => {
-                    self.stats.table_full += 1;
-                    return ObserveOutcome::Rejected(RejectReason::TableFull);
-                }
+                None => match self.free_slot(o.t) {
+                    Some(s) => {
+                        self.init_track(s, o);
+                        self.stats.accepted += 1;
+                        self.stats.tracks_created += 1;
+                        return ObserveOutcome::NewTrack;
+                    }
+                    None => {
+                        self.stats.table_full += 1;
+                        return ObserveOutcome::Rejected(RejectReason::TableFull);
+                    }
+                },
             },
         };
         let cfg = self.cfg;
