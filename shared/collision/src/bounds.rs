@@ -79,39 +79,8 @@ pub fn surface_excess(
     p_true: &[f64; 3],
     q_true: &[f64; 4],
 ) -> f64 {
-    let at = |p: &[f64; 3], q: &[f64; 4], local: &[f64; 3]| {
-        let l = [local[0] + shape.offset[0], local[1] + shape.offset[1], local[2] + shape.offset[2]];
-        let r = quat_rotate(q, &l);
-        [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
-    };
-    let d = &shape.dims;
-    match ShapeKind::from_u32(shape.kind) {
-        Some(ShapeKind::Capsule) => {
-            let (a, b) = (at(p_pred, q_pred, &[0.0, 0.0, -d[0]]), at(p_pred, q_pred, &[0.0, 0.0, d[0]]));
-            let e0 = crate::seg_point(&a, &b, &at(p_true, q_true, &[0.0, 0.0, -d[0]]));
-            let e1 = crate::seg_point(&a, &b, &at(p_true, q_true, &[0.0, 0.0, d[0]]));
-            e0.max(e1)
-        }
-        Some(ShapeKind::Box) => {
-            let mut worst: f64 = 0.0;
-            for c in 0..8 {
-                let s = |i: usize| if c >> i & 1 == 1 { d[i] } else { -d[i] };
-                let x = at(p_true, q_true, &[s(0), s(1), s(2)]);
-                // Into the predicted box's frame: distance to the box.
-                let o = at(p_pred, q_pred, &[0.0, 0.0, 0.0]);
-                let rel = [x[0] - o[0], x[1] - o[1], x[2] - o[2]];
-                let qc = [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]];
-                let l = quat_rotate(&qc, &rel);
-                let e = (0..3).map(|i| (l[i].abs() - d[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
-                worst = worst.max(e);
-            }
-            worst
-        }
-        _ => {
-            let (a, b) = (at(p_pred, q_pred, &[0.0; 3]), at(p_true, q_true, &[0.0; 3]));
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        }
-    }
+    // An unknown shape's radius cancels (the centre distance).
+    shape_excess(shape, 0.0, p_pred, q_pred, shape, 0.0, p_true, q_true)
 }
 
 /// The smallest `s` such that the true shape `truth` (pose `p_true`, `q_true`) lies inside
@@ -142,40 +111,23 @@ pub fn shape_excess(
         [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
     };
     let d = &pred.dims;
-    // The farthest distance from the ball (x, r) to the predicted core, and the predicted
-    // core's radius.
-    #[allow(clippy::type_complexity)]
-    let (pred_r, to_pred): (f64, Box<dyn Fn(&[f64; 3], f64) -> f64>) = match ShapeKind::from_u32(pred.kind) {
-        Some(ShapeKind::Sphere) => {
-            let c = at(pred, p_pred, q_pred, &[0.0; 3]);
-            (d[0], Box::new(move |x, r| crate::dist(&c, x) + r))
-        }
-        Some(ShapeKind::Capsule) => {
-            let (a, b) =
-                (at(pred, p_pred, q_pred, &[0.0, 0.0, -d[0]]), at(pred, p_pred, q_pred, &[0.0, 0.0, d[0]]));
-            (d[1], Box::new(move |x, r| crate::seg_point(&a, &b, x) + r))
-        }
-        Some(ShapeKind::Box) => {
-            let (o, qc, h) =
-                (at(pred, p_pred, q_pred, &[0.0; 3]), [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]], *d);
-            (
-                0.0,
-                Box::new(move |x, r| {
-                    let l = quat_rotate(&qc, &[x[0] - o[0], x[1] - o[1], x[2] - o[2]]);
-                    let out = (0..3).map(|i| (l[i].abs() - h[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
-                    if out > 0.0 {
-                        out + r
-                    } else {
-                        r - (0..3).map(|i| h[i] - l[i].abs()).fold(f64::INFINITY, f64::min)
-                    }
-                }),
-            )
-        }
-        _ => (pred_radius, Box::new(move |x, r| crate::dist(p_pred, x) + r)),
+    let core = match ShapeKind::from_u32(pred.kind) {
+        Some(ShapeKind::Sphere) => Core::Point(at(pred, p_pred, q_pred, &[0.0; 3]), d[0]),
+        Some(ShapeKind::Capsule) => Core::Segment(
+            at(pred, p_pred, q_pred, &[0.0, 0.0, -d[0]]),
+            at(pred, p_pred, q_pred, &[0.0, 0.0, d[0]]),
+            d[1],
+        ),
+        Some(ShapeKind::Box) => Core::Solid(
+            at(pred, p_pred, q_pred, &[0.0; 3]),
+            [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]],
+            *d,
+        ),
+        _ => Core::Point(*p_pred, pred_radius),
     };
     let t = &truth.dims;
     let mut worst = f64::NEG_INFINITY;
-    let mut point = |x: [f64; 3], r: f64| worst = worst.max(to_pred(&x, r) - pred_r);
+    let mut point = |x: [f64; 3], r: f64| worst = worst.max(core.excess(&x, r));
     match ShapeKind::from_u32(truth.kind) {
         Some(ShapeKind::Sphere) => point(at(truth, p_true, q_true, &[0.0; 3]), t[0]),
         Some(ShapeKind::Capsule) => {
@@ -191,6 +143,38 @@ pub fn shape_excess(
         _ => point(*p_true, true_radius),
     }
     worst.max(0.0)
+}
+
+/// A predicted shape as a core swept by a ball ([`shape_excess`]).
+enum Core {
+    /// Centre and radius (a sphere, or an unknown shape's bounding sphere).
+    Point([f64; 3], f64),
+    /// Axis ends and radius (a capsule).
+    Segment([f64; 3], [f64; 3], f64),
+    /// Centre, world → body rotation and half extents (a box).
+    Solid([f64; 3], [f64; 4], [f64; 3]),
+}
+
+impl Core {
+    /// How far the ball (`x`, `r`) reaches beyond this shape: its farthest point's distance to
+    /// the core less the core's radius. From a point or a segment the farthest point lies `r`
+    /// beyond `x`'s own distance; from a box too for `x` outside, and for `x` inside `r` less
+    /// its depth below the nearest face.
+    fn excess(&self, x: &[f64; 3], r: f64) -> f64 {
+        match self {
+            Core::Point(c, rc) => crate::dist(c, x) + r - rc,
+            Core::Segment(a, b, rc) => crate::seg_point(a, b, x) + r - rc,
+            Core::Solid(o, qc, h) => {
+                let l = quat_rotate(qc, &[x[0] - o[0], x[1] - o[1], x[2] - o[2]]);
+                let out = (0..3).map(|i| (l[i].abs() - h[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
+                if out > 0.0 {
+                    out + r
+                } else {
+                    r - (0..3).map(|i| h[i] - l[i].abs()).fold(f64::INFINITY, f64::min)
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
