@@ -18,7 +18,7 @@ use dkrrt_model::ArmModel;
 use dkrrt_msg::{ContractLimits, ControllerMode, DebrisForecast, DebrisObservation, Trajectory, Zeroed, NJ};
 use dkrrt_otg::Limits;
 use dkrrt_planner::goto::Goto;
-use dkrrt_planner::predict::{fit_models, ObsCounters, PredictorCore};
+use dkrrt_planner::predict::{fit_models, Cadence, ObsCounters, PredictorCore};
 use dkrrt_planner::replan::replanner;
 use dkrrt_predictor::{GateStats, Models};
 use dkrrt_rrt::{Replanner, Summary, TrackerView};
@@ -103,6 +103,12 @@ pub struct PredictorFigures {
     pub tracks: u32,
     pub observations: ObsCounters,
     pub gate: GateStats,
+    /// Of `forecasts`, those nobody was going to read (a newer one came before the planner's
+    /// next cycle, or no planner reads them): only their calibration was done.
+    pub deferred: u64,
+    /// Planner cycles that read an older forecast than the process set would have (the
+    /// newest one had been deferred and no newer one came): 0 unless the input stalled.
+    pub stale_reads: u64,
 }
 
 /// The predictor, wired in process.
@@ -115,6 +121,44 @@ pub struct PredictorLoop {
     pub fresh: bool,
     lim: ContractLimits,
     rate_hz: f64,
+    /// Due forecasts that nobody was going to read: only their calibration was done
+    /// ([`PredictorCore::observe_then_forecast_if`]).
+    pub deferred: u64,
+    /// Planner cycles whose latest due forecast had been deferred (the planner read an older
+    /// one than the process set would have): 0 unless the input stalled longer than
+    /// `read_window_ns`.
+    pub stale_reads: u64,
+    /// Defer the forecasts nobody reads (the default; `false`: build every one, as the
+    /// predictor process does).
+    pub lazy: bool,
+    latest_deferred: bool,
+    /// A due forecast is written when the planner's next cycle is at most this far ahead:
+    /// the longest gap between due forecasts of the pose sensor (the slower of its and the
+    /// forecast rate, plus its latency jitter), so a later one comes before the cycle unless
+    /// the input stalls (then `stale_reads` counts it); through the depth camera, always.
+    read_window_ns: u64,
+}
+
+impl PredictorLoop {
+    /// Whether a forecast due now (`now_ns`) could be the one the planner reads at its next
+    /// cycle (`None`: no planner reads forecasts).
+    fn read(&self, now_ns: u64, next_cycle_ns: Option<u64>) -> bool {
+        !self.lazy || next_cycle_ns.is_some_and(|c| c.saturating_sub(now_ns) <= self.read_window_ns)
+    }
+
+    fn count(&mut self, c: Cadence) {
+        match c {
+            Cadence::Written(n) if n > 0 => {
+                (self.forecasts, self.tracks, self.fresh, self.latest_deferred) =
+                    (self.forecasts + 1, n as u32, true, false);
+            }
+            Cadence::CalibrationOnly(n) if n > 0 => {
+                (self.forecasts, self.tracks, self.deferred, self.latest_deferred) =
+                    (self.forecasts + 1, n as u32, self.deferred + 1, true);
+            }
+            _ => {}
+        }
+    }
 }
 
 /// The sim's depth camera, in process; with `predictor.input = "depth"` its frames reach the
@@ -223,6 +267,11 @@ impl Lockstep {
                 fresh: false,
                 lim: contract_limits(&model),
                 rate_hz: sc.predictor.rate_hz,
+                deferred: 0,
+                stale_reads: 0,
+                lazy: true,
+                latest_deferred: false,
+                read_window_ns: read_window_ns(sc),
             }),
             (true, None) => {
                 return Err("lockstep: a scenario with debris needs the predictor's models".into())
@@ -344,7 +393,10 @@ impl Lockstep {
             if deliver_state && core.cycle_due(stamp) {
                 let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };
                 let fc = match (&mut self.predictor, &mut self.oracle) {
-                    (Some(p), _) => std::mem::take(&mut p.fresh).then_some(&*p.forecast),
+                    (Some(p), _) => {
+                        p.stale_reads += p.latest_deferred as u64;
+                        std::mem::take(&mut p.fresh).then_some(&*p.forecast)
+                    }
                     (None, Some(o)) => std::mem::take(&mut o.fresh).then_some(&*o.forecast),
                     (None, None) => None,
                 };
@@ -373,16 +425,20 @@ impl Lockstep {
         if deliver_state {
             self.sim.plant.offer_command(out.state_seq, &out.tau);
         }
+        // Forecasts the planner will not read (a newer one comes before its next cycle, or no
+        // planner reads them) are not built: the lockstep's speed, the same run.
+        let next_cycle = match &self.source {
+            TrajSource::Planner { core, .. } => Some(core.next_cycle_ns()),
+            TrajSource::Straight { .. } => None,
+        };
+        let now_ns = stamp + self.period_ns;
         let pred = &mut self.predictor;
         let poses = !self.camera.as_ref().is_some_and(|c| c.feeds_predictor);
         let _ = self.sim.step::<()>(&mut self.frame, |f| {
             if let Some(p) = pred.as_mut().filter(|_| poses) {
-                let n = p.core.observe_then_forecast(f, &p.lim, p.rate_hz, &mut p.forecast);
-                if n > 0 {
-                    p.forecasts += 1;
-                    p.tracks = n as u32;
-                    p.fresh = true;
-                }
+                let read = p.read(now_ns, next_cycle);
+                let c = p.core.observe_then_forecast_if(f, &p.lim, p.rate_hz, &mut p.forecast, read);
+                p.count(c);
             }
             Ok(())
         });
@@ -392,12 +448,9 @@ impl Lockstep {
             let CameraLoop { side: cam, renderers, snap, feeds_predictor } = c;
             let _ = cam.tick::<()>(side, &q, snap, renderers, |img| {
                 let Some(p) = pred.as_mut().filter(|_| *feeds_predictor) else { return Ok(()) };
-                let n = p.core.observe_depth_then_forecast(img, &p.lim, p.rate_hz, &mut p.forecast);
-                if n > 0 {
-                    p.forecasts += 1;
-                    p.tracks = n as u32;
-                    p.fresh = true;
-                }
+                let read = p.read(now_ns, next_cycle);
+                let c = p.core.observe_depth_then_forecast_if(img, &p.lim, p.rate_hz, &mut p.forecast, read);
+                p.count(c);
                 Ok(())
             });
         }
@@ -537,6 +590,8 @@ impl Lockstep {
                     tracks: d.tracks,
                     observations: d.core.counters,
                     gate: *d.core.gate(),
+                    deferred: d.deferred,
+                    stale_reads: d.stale_reads,
                 }),
                 (None, Some(o)) => Some(PredictorFigures {
                     method: "truth".into(),
@@ -544,6 +599,8 @@ impl Lockstep {
                     tracks: o.forecast.count,
                     observations: ObsCounters::default(),
                     gate: GateStats::default(),
+                    deferred: 0,
+                    stale_reads: 0,
                 }),
                 (None, None) => None,
             },
@@ -551,6 +608,21 @@ impl Lockstep {
             motion: self.motion,
         }
     }
+}
+
+/// [`PredictorLoop::read_window_ns`] of a scenario: the predictor's input (the pose sensor,
+/// with its latency jitter, or the depth camera) and forecast rates.
+fn read_window_ns(sc: &Scenario) -> u64 {
+    if sc.depth_input() {
+        // A camera frame may hold no whole view of any object (then nothing is observed and
+        // no forecast is due) for several frames in a row: every forecast is built.
+        return u64::MAX;
+    }
+    // Every sensor frame carries every object (losing all of them is rare): one frame, and
+    // the spread of its latency.
+    let window_s =
+        (1.0 / sc.debris.sensor_rate_hz).max(1.0 / sc.predictor.rate_hz) + sc.debris.latency_jitter_s;
+    (window_s * 1e9).ceil() as u64 + sc.period_ns()
 }
 
 fn push(events: &mut Vec<ModeEvent>, e: ModeEvent) {

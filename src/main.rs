@@ -583,8 +583,9 @@ fn main() -> ExitCode {
                 train_deep,
                 scenario: scenario.map(|p| p.display().to_string()),
             };
-            // A bad base scenario is reported before anything runs.
-            dkrrt::study::base_scenario_of(&opts)?;
+            // A bad base scenario is reported before anything runs; the report states the split
+            // of this one.
+            let base = dkrrt::study::base_scenario_of(&opts)?;
             let rows_path = match (&out, &json) {
                 (Some(d), _) => Some(d.join("rows.jsonl")),
                 (None, Some(p)) => Some(p.with_extension("rows.jsonl")),
@@ -605,11 +606,18 @@ fn main() -> ExitCode {
                 "{} episodes x methods in {wall_s:.1} s wall ({threads} threads, seed {seed})",
                 rows.len()
             );
+            let stale: u64 = rows.iter().map(|r| r.stale_forecast_reads).sum();
+            if stale > 0 {
+                println!(
+                    "note: {stale} planner cycles read an older forecast than the process set would have \
+                     (the predictor's input stalled; stale_forecast_reads in the rows)"
+                );
+            }
             let info = dkrrt::study_report::RunInfo::now(&opts, &size, &goal, wall_s);
             let doc = serde_json::json!({
                 "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal,
                 "scenario": opts.scenario.as_deref().unwrap_or("<embedded default>"),
-                "run": info, "split": dkrrt::study_report::split_text(&opts), "summary": summary, "rows": rows,
+                "run": info, "split": dkrrt::study_report::split_text(&opts, &base), "summary": summary, "rows": rows,
             });
             let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
             if let Some(p) = &json {
@@ -642,7 +650,8 @@ fn main() -> ExitCode {
                     None => None,
                 };
                 let files = dkrrt::figures::study_figures(&figs, &summary, trace.as_ref())?;
-                let md = dkrrt::study_report::markdown(&summary, &opts, &info, &files, d, trace.as_ref());
+                let md =
+                    dkrrt::study_report::markdown(&summary, &opts, &base, &info, &files, d, trace.as_ref());
                 w("study.md", &md)?;
                 println!("study: {} ({} figure files)", d.display(), files.len());
             }

@@ -62,6 +62,9 @@ pub struct Row {
     pub plant_s: f64,
     pub wall_s: f64,
     pub episode_gen_s: f64,
+    /// Planner cycles that read an older forecast than the process set would have (the
+    /// lockstep builds only the forecasts the planner reads: `PredictorFigures::stale_reads`).
+    pub stale_forecast_reads: u64,
     pub error: Option<String>,
 }
 
@@ -96,6 +99,7 @@ impl Row {
             plant_s: 0.0,
             wall_s: 0.0,
             episode_gen_s: 0.0,
+            stale_forecast_reads: 0,
             error: None,
         }
     }
@@ -203,6 +207,7 @@ pub fn run_episode(
         row.ee_path_error_m_max = r.motion.ee_path_error_m_max;
         row.path_length_rad = r.motion.path_length_rad;
         row.plant_s = r.ticks as f64 * sc.period_ns() as f64 * 1e-9;
+        row.stale_forecast_reads = r.predictor.as_ref().map_or(0, |p| p.stale_reads);
         if let Some(p) = r.planner {
             row.replans = p.replans;
             row.plan_ms = PlanMs { p50: p.plan_ms.p50, p99: p.plan_ms.p99, max: p.plan_ms.max };

@@ -320,9 +320,9 @@ impl RunInfo {
     }
 }
 
-/// What every model saw and what was evaluated (the no-leakage split), as stated in the output.
-pub fn split_text(opts: &crate::study::StudyOptions) -> String {
-    let b = crate::study::base_scenario_of(opts).unwrap_or_else(|_| crate::study::base_scenario());
+/// What every model saw and what was evaluated (the no-leakage split) in a study on the base
+/// scenario `b`, as stated in the output.
+pub fn split_text(opts: &crate::study::StudyOptions, b: &dkrrt_config::Scenario) -> String {
     format!(
         "Evaluated: threat episodes of {} (indices 0..{}) generated from seed {} (start, goal and the debris' initial states drawn per episode and integrated backwards from their aim points); no model sees any of them before it runs. \
          Forecast models (cv, EDMD, the translation and dual-data parts of dk-rrt): fitted once at start-up on {} runs of generic random scenes (seeds {}.., random objects of every shape, not the named scenes, not an episode). \
@@ -340,6 +340,7 @@ pub fn split_text(opts: &crate::study::StudyOptions) -> String {
 pub fn markdown(
     s: &Summary,
     opts: &crate::study::StudyOptions,
+    base: &dkrrt_config::Scenario,
     info: &RunInfo,
     figures: &[std::path::PathBuf],
     dir: &std::path::Path,
@@ -351,7 +352,7 @@ pub fn markdown(
         info.command, info.git_revision, info.machine, info.threads, info.date_utc, info.size, opts.episodes, info.goal, info.wall_s
     ));
     o.push_str("Completed = the goal reached (every joint within 0.01 rad, or the end effector within 1 cm and 0.02 rad) before the episode's time limit with no contact at any tick. Every method runs the same episodes.\n\n");
-    o.push_str(&format!("**Split (no leakage).** {}\n\n", split_text(opts)));
+    o.push_str(&format!("**Split (no leakage).** {}\n\n", split_text(opts, base)));
     o.push_str(&markdown_tables(s));
     if !figures.is_empty() {
         o.push_str("\n### Figures\n\n");

@@ -153,3 +153,35 @@ fn the_learned_front_end_reads_the_camera_views_through_f_theta() {
     assert!(e.contains("predictor.visual_model") && e.contains("bad.dkv"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The lockstep builds only the forecasts the planner reads (the others only do their
+/// calibration, [`dkrrt_planner::predict::PredictorCore::observe_then_forecast_if`]): the run
+/// is the one that builds them all, as the predictor process does, tick for tick.
+#[test]
+fn forecasts_nobody_reads_are_not_built_and_the_run_is_the_same() {
+    let mut sc = Scenario::default_scenario();
+    dkrrt_episodes::resolve(&mut sc).unwrap();
+    let run = |lazy: bool| {
+        let mut ls = dkrrt::lockstep::Lockstep::new(&sc).unwrap();
+        ls.predictor.as_mut().unwrap().lazy = lazy;
+        for _ in 0..sc.ticks() {
+            ls.tick(true);
+        }
+        ls.report(&sc)
+    };
+    let (a, b) = (run(true), run(false));
+    assert_eq!(a.final_q, b.final_q);
+    assert_eq!(a.goal_reached_s, b.goal_reached_s);
+    assert!(a.goal_reached_s.is_some());
+    assert_eq!(a.debris.unwrap(), b.debris.unwrap());
+    let (sa, sb) = (a.planner.unwrap(), b.planner.unwrap());
+    assert_eq!((sa.cycles, sa.replans, sa.iterations), (sb.cycles, sb.replans, sb.iterations));
+    assert_eq!(sa.min_predicted_clearance_m, sb.min_predicted_clearance_m);
+    let (pa, pb) = (a.predictor.unwrap(), b.predictor.unwrap());
+    let key = |p: &dkrrt::lockstep::PredictorFigures| (p.forecasts, p.gate.events, p.gate.accepted);
+    assert_eq!(key(&pa), key(&pb));
+    // At 50 Hz against a 10 Hz planner four in five are read by no cycle; those within the
+    // read window before a cycle are built.
+    assert!(pa.deferred as f64 > 0.5 * pa.forecasts as f64, "{} of {}", pa.deferred, pa.forecasts);
+    assert_eq!((pa.stale_reads, pb.deferred, pb.stale_reads), (0, 0, 0));
+}

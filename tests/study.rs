@@ -155,7 +155,7 @@ fn no_episode_reaches_the_models_the_study_plans_with() {
     }
     // The split is stated with the output.
     let opts = dense_options(4, "dk-rrt", 11, None);
-    let split = dkrrt::study_report::split_text(&opts);
+    let split = dkrrt::study_report::split_text(&opts, &dkrrt::study::base_scenario_of(&opts).unwrap());
     assert!(
         split.contains("seed 11") && split.contains("generic random scenes") && split.contains("never"),
         "{split}"

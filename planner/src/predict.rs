@@ -205,6 +205,29 @@ pub fn next_forecast_due(t: f64, rate_hz: f64) -> f64 {
     (t * rate_hz).floor() / rate_hz + 1.0 / rate_hz
 }
 
+/// What became of a frame's forecast ([`PredictorCore::observe_then_forecast_if`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cadence {
+    /// No forecast was due with this frame.
+    NotDue,
+    /// Written into the message: the number of tracks (0: no mature track).
+    Written(usize),
+    /// Due, but nobody reads it: only what it changes in the predictor was done; the number of
+    /// tracks it would have written.
+    CalibrationOnly(usize),
+}
+
+impl Cadence {
+    /// Tracks written into the message (0 unless [`Cadence::Written`]).
+    pub fn written(self) -> usize {
+        if let Cadence::Written(n) = self {
+            n
+        } else {
+            0
+        }
+    }
+}
+
 /// Predictor + forecast buffer + the frame/message conversions.
 pub struct PredictorCore {
     pred: DebrisPredictor,
@@ -336,11 +359,29 @@ impl PredictorCore {
         rate_hz: f64,
         msg: &mut DebrisForecast,
     ) -> usize {
+        self.observe_then_forecast_if(frame, lim, rate_hz, msg, true).written()
+    }
+
+    /// [`PredictorCore::observe_then_forecast`] for a caller that knows whether anyone will
+    /// read this frame's forecast: with `read = false` a due forecast only does what it would
+    /// change in the predictor ([`DebrisPredictor::forecast_for_calibration`]) and `msg` is
+    /// left alone, so the predictor goes on exactly as if it had been written.
+    pub fn observe_then_forecast_if(
+        &mut self,
+        frame: &DebrisObservation,
+        lim: &ContractLimits,
+        rate_hz: f64,
+        msg: &mut DebrisForecast,
+        read: bool,
+    ) -> Cadence {
         self.observe_frame(frame, lim);
-        if self.due_on_plant_clock(rate_hz) {
-            self.forecast_into(msg)
+        if !self.due_on_plant_clock(rate_hz) {
+            Cadence::NotDue
+        } else if read {
+            Cadence::Written(self.forecast_into(msg))
         } else {
-            0
+            self.apply_shapes();
+            Cadence::CalibrationOnly(self.pred.forecast_for_calibration(&mut self.buf))
         }
     }
 
@@ -365,13 +406,25 @@ impl PredictorCore {
         rate_hz: f64,
         msg: &mut DebrisForecast,
     ) -> usize {
+        self.observe_depth_then_forecast_if(img, lim, rate_hz, msg, true).written()
+    }
+
+    /// [`PredictorCore::observe_then_forecast_if`] for a depth frame.
+    pub fn observe_depth_then_forecast_if(
+        &mut self,
+        img: &dkrrt_msg::DepthImage,
+        lim: &ContractLimits,
+        rate_hz: f64,
+        msg: &mut DebrisForecast,
+        read: bool,
+    ) -> Cadence {
         if !self.depth_valid(img, lim) {
-            return 0;
+            return Cadence::NotDue;
         }
         let seen = self.see(img);
-        let n = self.observe_then_forecast(&seen, lim, rate_hz, msg);
+        let c = self.observe_then_forecast_if(&seen, lim, rate_hz, msg, read);
         self.seen = Some(seen);
-        n
+        c
     }
 
     /// Checks a depth frame against the contract; a bad one is counted as a rejected frame.
@@ -392,6 +445,13 @@ impl PredictorCore {
         self.counters.learned_views = self.perception.stats.learned;
         seen.header = img.header;
         seen
+    }
+
+    /// The tracks take their objects' latest shapes (size, inertia hint) before a forecast.
+    fn apply_shapes(&mut self) {
+        for e in &self.radii {
+            self.pred.set_shape(e.0, &e.2);
+        }
     }
 
     fn set_shape(&mut self, id: u32, r: f64, shape: DebrisShape) {
@@ -415,9 +475,7 @@ impl PredictorCore {
     /// precession and that forecast's calibrated bound, other shapes the full attitude
     /// forecast and bound), `sigma_pos_m` = the position bound alone (for the bounding sphere). Returns the number of tracks written (0: nothing to publish).
     pub fn forecast_into(&mut self, msg: &mut DebrisForecast) -> usize {
-        for e in &self.radii {
-            self.pred.set_shape(e.0, &e.2);
-        }
+        self.apply_shapes();
         let n = self.pred.forecast(&mut self.buf);
         let h = self.buf.horizon();
         let dt = self.buf.dt();

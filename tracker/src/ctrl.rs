@@ -610,8 +610,8 @@ impl Tracker {
             for i in 0..NJ {
                 qdd[i] = ad[i] + self.cfg.kd[i] * (vd[i] - qdc[i]) + self.cfg.kp[i] * (pd[i] - qc[i]);
             }
-            let m = self.model.mass_matrix(&qc);
-            m * qdd + self.model.nonlinear_effects(&qc, &qdc)
+            // M(q) q̈ + h(q, q̇) in one recursive Newton–Euler pass.
+            self.model.rnea(&qc, &qdc, &qdd)
         };
         // Never command beyond the actuators' limits.
         let lim = &self.model.limits().tau_max;

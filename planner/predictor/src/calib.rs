@@ -61,15 +61,20 @@ impl ForecastScore {
         self.last_decay = f64::NAN;
     }
 
+    /// Whether [`ForecastScore::record`] would keep a forecast from `t0`: at most one per model
+    /// step of start time, so the kept ones span `SLOTS · dt` (more than the horizon) however
+    /// often the caller forecasts.
+    pub fn wants(&self, t0: f64) -> bool {
+        let last = (self.head + SLOTS - 1) % SLOTS;
+        !(self.t0[last].is_finite() && t0 < self.t0[last] + self.dt - 1e-9)
+    }
+
     /// Keeps a published forecast from `t0` (unless one was kept less than a model step
     /// earlier): `states` is `h` rows of 13-states
     /// ([`dkrrt_koopman::debris_state`] layout) at `t0 + k·dt`, `k = 1..=h`.
     pub fn record(&mut self, t0: f64, states: &[f64]) {
         use dkrrt_koopman::debris_state::N;
-        // At most one forecast per model step of start time, so the kept ones span
-        // SLOTS · dt (more than the horizon) however often the caller forecasts.
-        let last = (self.head + SLOTS - 1) % SLOTS;
-        if self.t0[last].is_finite() && t0 < self.t0[last] + self.dt - 1e-9 {
+        if !self.wants(t0) {
             return;
         }
         let slot = self.head;

@@ -183,7 +183,8 @@ pub struct GateStats {
     pub events: u64,
     /// One-step model pairs processed (residual test and, for online methods, RLS).
     pub model_pairs: u64,
-    /// Forecasts that left the trust region and were continued by constant velocity.
+    /// Track roll-outs that left the trust region and were continued by constant velocity
+    /// (of those computed: [`DebrisPredictor::forecast_for_calibration`] rolls out fewer).
     pub forecast_fallbacks: u64,
     /// Translation filter re-openings after a manoeuvre (impulse) was detected from the
     /// pose innovations ([`crate::filter`]).
@@ -772,14 +773,34 @@ impl DebrisPredictor {
     /// `H = buf.horizon()` steps ahead from its last estimate. Returns the number of tracks
     /// written. Allocation-free.
     pub fn forecast(&mut self, buf: &mut ForecastBuffer) -> usize {
+        self.forecast_tracks(buf, false)
+    }
+
+    /// What [`DebrisPredictor::forecast`] would change in the predictor, without the forecast:
+    /// the tracks whose online calibration keeps this forecast (about one in
+    /// `rate · dt` calls) are rolled out and kept; nothing is written for a reader
+    /// (`buf.len() == 0`). A caller that knows nobody reads a forecast (the in-process
+    /// lockstep, between planner cycles) calls this instead and leaves the predictor exactly
+    /// as a full forecast would (a track's roll-out does not depend on the others'). Returns
+    /// the number of tracks a forecast would have written. Allocation-free.
+    pub fn forecast_for_calibration(&mut self, buf: &mut ForecastBuffer) -> usize {
+        self.forecast_tracks(buf, true)
+    }
+
+    fn forecast_tracks(&mut self, buf: &mut ForecastBuffer, calibration_only: bool) -> usize {
         let h = buf.h.min(self.models.horizon);
         assert!((buf.dt - self.models.dt).abs() < 1e-12, "forecast buffer dt differs from the model dt");
         let hb = buf.h;
         // Tracks to forecast; rolled out four at a time (overlapping dependency chains).
         let mut sel = [0u16; MAX_TRACKS];
-        let mut n = 0;
+        let (mut n, mut mature) = (0, 0);
         for (i, tr) in self.tracks.iter().enumerate() {
-            if tr.active && tr.n_obs >= self.cfg.min_obs_for_forecast {
+            if !(tr.active && tr.n_obs >= self.cfg.min_obs_for_forecast) {
+                continue;
+            }
+            mature += 1;
+            let kept = tr.n_obs >= self.cfg.calib_min_obs && tr.score.wants(tr.filter.t);
+            if kept || !calibration_only {
                 sel[n] = i as u16;
                 n += 1;
             }
@@ -799,6 +820,15 @@ impl DebrisPredictor {
                 [a] => self.engine.run_lanes::<1>(m, [job(a)], h),
                 _ => unreachable!(),
             }
+        }
+        if calibration_only {
+            for (k, &i) in sel[..n].iter().enumerate() {
+                let tr = &mut self.tracks[i as usize];
+                tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
+            }
+            buf.len = 0;
+            self.stats.forecast_fallbacks = self.engine.fallbacks;
+            return mature;
         }
         let (floor, factor) = (self.cfg.calib_floor, self.cfg.calib_factor);
         let physics = self.attitude_physics();

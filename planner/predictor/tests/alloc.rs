@@ -56,7 +56,7 @@ fn observe_and_forecast_do_not_allocate() {
             pr.observe(o);
         }
         pr.forecast(&mut buf);
-        let mut forecasts = 0;
+        let (mut forecasts, mut calibrations) = (0, 0);
         let (_, stats) = count(|| {
             for (i, o) in rec.obs[split..].iter().enumerate() {
                 if cfg.revive_s > 0.0 && hidden(o) {
@@ -69,6 +69,9 @@ fn observe_and_forecast_do_not_allocate() {
                         pr.set_shape(*id, shape);
                     }
                     forecasts += pr.forecast(&mut buf);
+                } else if i % 8 == 0 {
+                    // The lockstep's forecasts nobody reads: their calibration alone.
+                    calibrations += pr.forecast_for_calibration(&mut buf);
                 }
             }
         });
@@ -76,6 +79,7 @@ fn observe_and_forecast_do_not_allocate() {
         // The region really exercised the machinery: the fragment got a track, pairs formed.
         assert!(pr.track(100).is_some(), "{method:?}: fragment track missing");
         assert!(forecasts > 1000 && pr.stats().model_pairs > 1000, "{method:?}: {:?}", pr.stats());
+        assert!(calibrations > 1000, "{method:?}: {calibrations}");
         if cfg.revive_s > 0.0 {
             assert!(pr.stats().revived >= 1, "{method:?}: the hidden track was not taken up again");
         }

@@ -395,3 +395,60 @@ fn the_baselines_forecast_attitude_with_their_model_alone() {
     }
     assert!(Method::DeepKoopmanOnline.attitude_physics() && !Method::EdmdPoly.attitude_physics());
 }
+
+#[test]
+fn a_forecast_nobody_reads_can_be_left_to_its_calibration() {
+    // Two predictors read the same tumbling-rods observations (its impulse included) with
+    // their shapes: one builds every forecast (as the predictor process, at
+    // 50 Hz), the other only every fifth and does the rest for their calibration alone (as
+    // the in-process lockstep between planner cycles). Every forecast the second builds is
+    // the first's at that time, bit for bit: it went on exactly as if it had built them all.
+    let scene = dkrrt_predictor::eval::perturbed_scene("tumbling-rods", 11, 1.0).unwrap();
+    let rec = record(&scene, SensorConfig::default(), 14.0, 0.01, 5).unwrap();
+    let models = fitted(Method::KoopmanOnline);
+    let cfg = PredictorConfig { attitude_physics: Some(true), ..PredictorConfig::default() };
+    let (mut full, mut lazy) = (DebrisPredictor::new(models.clone(), cfg), DebrisPredictor::new(models, cfg));
+    let (mut a, mut b) = (ForecastBuffer::for_predictor(&full), ForecastBuffer::for_predictor(&lazy));
+    let (mut due, mut built, mut i) = (0, 0, 0);
+    while i < rec.obs.len() {
+        // One sensor frame: the observations of one time.
+        let t = rec.obs[i].t;
+        while i < rec.obs.len() && rec.obs[i].t == t {
+            full.observe(&rec.obs[i]);
+            lazy.observe(&rec.obs[i]);
+            i += 1;
+        }
+        for (id, shape, _) in &rec.shapes {
+            full.set_shape(*id, shape);
+            lazy.set_shape(*id, shape);
+        }
+        let n = full.forecast(&mut a);
+        if n == 0 {
+            continue;
+        }
+        due += 1;
+        if due % 5 != 0 {
+            assert_eq!(lazy.forecast_for_calibration(&mut b), n, "the tracks it would have written");
+            assert_eq!(b.len(), 0, "nothing for a reader");
+            continue;
+        }
+        assert_eq!(lazy.forecast(&mut b), n);
+        built += 1;
+        for j in 0..n {
+            assert_eq!((a.id(j), a.t0(j)), (b.id(j), b.t0(j)));
+            for k in 1..=a.horizon() {
+                let same = a.state(j, k) == b.state(j, k)
+                    && a.attitude(j, k) == b.attitude(j, k)
+                    && a.attitude_radius(j, k) == b.attitude_radius(j, k)
+                    && a.pos_radius(j, k) == b.pos_radius(j, k)
+                    && a.axis(j, k) == b.axis(j, k)
+                    && a.axis_radius(j, k) == b.axis_radius(j, k);
+                assert!(same, "t = {t}: track {} step {k} differs", a.id(j));
+            }
+        }
+    }
+    // The impulse was seen (a manoeuvre of the translation filter).
+    let st = lazy.stats();
+    assert!(built > 100 && st.events + st.maneuvers > 0, "{built} forecasts built, {st:?}");
+    assert_eq!((full.stats().events, full.stats().maneuvers), (st.events, st.maneuvers));
+}

@@ -240,6 +240,11 @@ impl Replanner {
         true
     }
 
+    /// The plant time at or after which the next cycle is due, ns (0 before the first).
+    pub fn next_cycle_ns(&self) -> u64 {
+        self.next_cycle_ns
+    }
+
     /// Numbers this planner's trajectories from `first` on (a restarted planner process starts
     /// past its predecessors' ids, so the tracker never takes a new plan for an old one).
     pub fn set_first_traj_id(&mut self, first: u64) {
