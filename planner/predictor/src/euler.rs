@@ -43,31 +43,33 @@ pub fn box_inertia(h: &[f64; 3]) -> [f64; 3] {
     [s[1] + s[2], s[0] + s[2], s[0] + s[1]]
 }
 
-/// Time derivative of `(q, ω)` (module docs).
-fn deriv(q: &[f64; 4], w: &[f64; 3], i: &[f64; 3], n: f64) -> ([f64; 4], [f64; 3]) {
+/// The coefficients of Euler's equations `ω̇_a = e_a ω_b ω_c` of principal moments `i`.
+fn euler_coefficients(i: &[f64; 3]) -> [f64; 3] {
+    [(i[1] - i[2]) / i[0], (i[2] - i[0]) / i[1], (i[0] - i[1]) / i[2]]
+}
+
+/// Time derivative of `(q, ω)` (module docs); `e` = [`euler_coefficients`].
+fn deriv(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64) -> ([f64; 4], [f64; 3]) {
     let qw = quat_mul(q, &[0.0, w[0], w[1], w[2]]);
     let nq = quat_mul(&[0.0, 0.0, 0.0, n], q);
     let dq = [0, 1, 2, 3].map(|k| 0.5 * (qw[k] - nq[k]));
-    let dw = [
-        (i[1] - i[2]) / i[0] * w[1] * w[2],
-        (i[2] - i[0]) / i[1] * w[2] * w[0],
-        (i[0] - i[1]) / i[2] * w[0] * w[1],
-    ];
+    let dw = [e[0] * w[1] * w[2], e[1] * w[2] * w[0], e[2] * w[0] * w[1]];
     (dq, dw)
 }
 
 /// One RK4 step of `h` seconds (`h` may be negative); the quaternion is renormalised.
-fn step_rk4(q: &[f64; 4], w: &[f64; 3], inertia: &[f64; 3], n: f64, h: f64) -> ([f64; 4], [f64; 3]) {
-    let (k1q, k1w) = deriv(q, w, inertia, n);
+/// `e` = [`euler_coefficients`] of the principal moments.
+fn step_rk4(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64, h: f64) -> ([f64; 4], [f64; 3]) {
+    let (k1q, k1w) = deriv(q, w, e, n);
     let at = |s: f64, dq: &[f64; 4], dw: &[f64; 3]| {
         ([0, 1, 2, 3].map(|k| q[k] + s * dq[k]), [0, 1, 2].map(|k| w[k] + s * dw[k]))
     };
     let (q2, w2) = at(0.5 * h, &k1q, &k1w);
-    let (k2q, k2w) = deriv(&q2, &w2, inertia, n);
+    let (k2q, k2w) = deriv(&q2, &w2, e, n);
     let (q3, w3) = at(0.5 * h, &k2q, &k2w);
-    let (k3q, k3w) = deriv(&q3, &w3, inertia, n);
+    let (k3q, k3w) = deriv(&q3, &w3, e, n);
     let (q4, w4) = at(h, &k3q, &k3w);
-    let (k4q, k4w) = deriv(&q4, &w4, inertia, n);
+    let (k4q, k4w) = deriv(&q4, &w4, e, n);
     let mut qn = [0, 1, 2, 3].map(|k| q[k] + h / 6.0 * (k1q[k] + 2.0 * k2q[k] + 2.0 * k3q[k] + k4q[k]));
     let wn = [0, 1, 2].map(|k| w[k] + h / 6.0 * (k1w[k] + 2.0 * k2w[k] + 2.0 * k3w[k] + k4w[k]));
     let nq = (qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3]).sqrt();
@@ -90,8 +92,9 @@ pub fn propagate(q: &[f64; 4], w: &[f64; 3], inertia: &[f64; 3], n: f64, dt: f64
     let h = dt / steps as f64;
     let (mut q, mut w) = (*q, *w);
     if dt != 0.0 {
+        let e = euler_coefficients(inertia);
         for _ in 0..steps {
-            (q, w) = step_rk4(&q, &w, inertia, n, h);
+            (q, w) = step_rk4(&q, &w, &e, n, h);
         }
     }
     (q, w)
@@ -373,7 +376,7 @@ mod tests {
         while t < secs {
             // A finer reference integration than the forecast's.
             for _ in 0..4 {
-                (q, w) = step_rk4(&q, &w, inertia, N_FRAME, 0.005);
+                (q, w) = step_rk4(&q, &w, &euler_coefficients(inertia), N_FRAME, 0.005);
             }
             t += 0.02;
             out.push((t, q));

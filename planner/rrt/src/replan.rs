@@ -358,7 +358,8 @@ impl Replanner {
             for dt in [0.0, 1.0, 3.0, 6.0, 9.0] {
                 let t = t_now + dt;
                 let c = self.planner.checker.clearance_at(&self.world, q_meas, t, 0.0, f64::NEG_INFINITY);
-                eprintln!("  rest clearance at +{dt}: {c:.3}");
+                let n = self.planner.checker.nearest_at(&self.world, q_meas, t);
+                eprintln!("  rest clearance at +{dt}: {c:.3} nearest {n:?}");
             }
             if self.current.traj_id != 0 {
                 let near: Vec<String> = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0]

@@ -7,8 +7,9 @@
 //! * Before the first pose: the motion of the first interval, extended backwards.
 //! * Past the last pose of a **forecast** track (its horizon): the centre keeps the velocity of
 //!   the last interval, the attitude is no longer predicted (the shape becomes its bounding
-//!   sphere), and σ keeps growing at the rate of the last interval (at least σ_last / horizon
-//!   per second). Past the last pose of a **problem** obstacle: the last pose is held, σ = 0.
+//!   sphere, which holds every attitude), and the position bound keeps growing at the rate of
+//!   the last interval (at least σ_pos,last / horizon per second). Past the last pose of a
+//!   **problem** obstacle: the last pose is held, σ = 0.
 //! * Inflation: σ(t) + the configured margin (+ what the checker's sampling can miss, added by
 //!   the checker).
 //!
@@ -52,7 +53,7 @@ struct Track {
     poses: Vec<TimedPose>,
     /// Max surface speed (incl. σ growth) over the poses and the extrapolation, m/s.
     speed: f64,
-    /// σ growth rate after the last pose, m/s.
+    /// Growth rate of the position bound (and of σ) after the last pose, m/s.
     sigma_rate: f64,
     /// The poses' spacing when uniform (forecasts: their step), s; 0: not uniform.
     grid_dt: f64,
@@ -309,13 +310,16 @@ fn finish(t: &mut Track) {
     }
     t.sigma_rate = 0.0;
     if t.after == After::Extrapolate && n >= 1 {
+        // Past the horizon the track is its bounding sphere, which holds every attitude: it
+        // grows with the position bound alone (an attitude bound times the shape's lever would
+        // count the attitude twice).
         let last = t.poses[n - 1];
         // σ grew from about 0 at the forecast's t0, one step before the first pose.
         let step = if n >= 2 { t.poses[1].t - t.poses[0].t } else { 1.0 };
-        let mut rate = last.sigma / (last.t - t.poses[0].t + step);
+        let mut rate = last.sigma_pos / (last.t - t.poses[0].t + step);
         if n >= 2 {
             let prev = t.poses[n - 2];
-            rate = rate.max((last.sigma - prev.sigma) / (last.t - prev.t));
+            rate = rate.max((last.sigma_pos - prev.sigma_pos) / (last.t - prev.t));
         }
         t.sigma_rate = rate.max(0.0);
         speed += t.sigma_rate;

@@ -93,13 +93,13 @@ impl ArmPoser {
     }
 
     pub fn pose(&self, q: &[f64; NJ], out: &mut [PosedCapsule; NJ]) {
-        let poses = self.model.link_poses(&JVec::from(*q));
+        let mut pts = [[[0.0; 3]; 2]; NJ];
+        self.model.capsule_points(&JVec::from(*q), &mut pts);
         let o = &self.offset;
-        for (c, lc) in out.iter_mut().zip(self.model.collision_capsules()) {
-            let (a, b) = lc.world_segment(&poses[lc.link]);
+        for ((c, lc), [a, b]) in out.iter_mut().zip(self.model.collision_capsules()).zip(pts) {
             *c = PosedCapsule::new(
-                [a.x + o[0], a.y + o[1], a.z + o[2]],
-                [b.x + o[0], b.y + o[1], b.z + o[2]],
+                [a[0] + o[0], a[1] + o[1], a[2] + o[2]],
+                [b[0] + o[0], b[1] + o[1], b[2] + o[2]],
                 lc.radius,
             );
         }

@@ -78,6 +78,19 @@ impl ArmModel {
         std::array::from_fn(|i| iso(&(f.r[i] * self.to_link[i]), &f.p[i]))
     }
 
+    /// Base-frame end points of the collision capsules at `q`, in the order of
+    /// [`ArmModel::collision_capsules`] (`out` holds as many): the links' rotation matrices
+    /// applied directly, no quaternion per link as [`ArmModel::link_poses`] builds (the
+    /// collision checks' hot path). Allocation-free.
+    pub fn capsule_points(&self, q: &JVec, out: &mut [[[f64; 3]; 2]]) {
+        let f = self.body_frames(q);
+        for (o, lc) in out.iter_mut().zip(self.collision_capsules()) {
+            let (r, p, tl) = (&f.r[lc.link], &f.p[lc.link], &self.to_link[lc.link]);
+            let (a, b) = (r * (tl * lc.a.coords) + p, r * (tl * lc.b.coords) + p);
+            *o = [[a.x, a.y, a.z], [b.x, b.y, b.z]];
+        }
+    }
+
     /// Base-frame joint axes (unit) and the points they pass through (joint origins).
     pub fn joint_axes(&self, q: &JVec) -> [(Vector3<f64>, Vector3<f64>); NJ] {
         let f = self.body_frames(q);

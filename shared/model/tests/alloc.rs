@@ -1,6 +1,6 @@
 //! Every kinematic/dynamic query (and IK) must be allocation-free.
 
-use dkrrt_model::{ArmModel, IkOptions, JVec};
+use dkrrt_model::{ArmModel, IkOptions, JVec, NJ};
 use dkrrt_rt::alloc_count::{count, CountingAlloc};
 use nalgebra::Vector3;
 use std::hint::black_box;
@@ -25,12 +25,17 @@ fn queries_do_not_allocate() {
     let target = m.fk(&JVec::from_column_slice(&[-0.4, 0.5, -0.8, 1.0, 0.6, -0.3]));
     let opts = IkOptions::default();
 
-    let checks: [(&str, &dyn Fn()); 13] = [
+    let mut pts = [[[0.0; 3]; 2]; NJ];
+    let pts = std::cell::RefCell::new(&mut pts);
+    let checks: [(&str, &dyn Fn()); 14] = [
         ("fk", &|| {
             black_box(m.fk(black_box(&q)));
         }),
         ("link_poses", &|| {
             black_box(m.link_poses(black_box(&q)));
+        }),
+        ("capsule_points", &|| {
+            m.capsule_points(black_box(&q), &mut pts.borrow_mut()[..]);
         }),
         ("jacobian", &|| {
             black_box(m.jacobian(black_box(&q)));

@@ -67,6 +67,28 @@ fn link_poses_are_consistent_with_joint_axes_and_fk() {
 }
 
 #[test]
+fn capsule_points_are_the_link_poses_capsule_segments() {
+    // The collision hot path's end points (rotation matrices throughout) are the capsules'
+    // segments placed by the link poses (quaternions), to rounding.
+    for (name, m) in models(Vector3::zeros()) {
+        let mut r = rng(23);
+        let n = m.collision_capsules().len();
+        assert!(n > 0, "{name}");
+        let mut pts = vec![[[0.0; 3]; 2]; n];
+        for _ in 0..50 {
+            let q = random_q(&m, &mut r);
+            let poses = m.link_poses(&q);
+            m.capsule_points(&q, &mut pts);
+            for (lc, [a, b]) in m.collision_capsules().iter().zip(&pts) {
+                let (wa, wb) = lc.world_segment(&poses[lc.link]);
+                let d = (Vector3::from(*a) - wa.coords).norm() + (Vector3::from(*b) - wb.coords).norm();
+                assert!(d < 1e-12, "{name}: link {} off by {d}", lc.link);
+            }
+        }
+    }
+}
+
+#[test]
 fn default_arm_capsules_follow_the_links() {
     let m = ArmModel::default_arm();
     let caps = m.collision_capsules();
