@@ -17,7 +17,8 @@
 //! (|v| + ω·R + dσ/dt over its intervals, and over the extrapolation), used by the checker to
 //! space its samples. Loading a forecast allocates nothing (fixed capacity).
 
-use dkrrt_collision::{interpolate_pose, quat_angle, Obstacle};
+use dkrrt_collision::pose::{slerp_on, Arc};
+use dkrrt_collision::{quat_angle, Obstacle};
 use dkrrt_msg::{DebrisForecast, DebrisShape, FORECAST_STEPS, MAX_DEBRIS};
 
 /// One timed pose of a track.
@@ -51,6 +52,8 @@ struct Track {
     lever: f64,
     after: After,
     poses: Vec<TimedPose>,
+    /// The slerp arc of each interval between consecutive poses (computed once per load).
+    arcs: Vec<Arc>,
     /// Max surface speed (incl. σ growth) over the poses and the extrapolation, m/s.
     speed: f64,
     /// Growth rate of the position bound (and of σ) after the last pose, m/s.
@@ -91,6 +94,7 @@ impl WorldInTime {
                 lever: 0.0,
                 after: After::Hold,
                 poses: Vec::with_capacity(FORECAST_STEPS + 1),
+                arcs: Vec::with_capacity(FORECAST_STEPS + 1),
                 speed: 0.0,
                 sigma_rate: 0.0,
                 grid_dt: 0.0,
@@ -289,6 +293,10 @@ impl WorldInTime {
 
 fn finish(t: &mut Track) {
     let n = t.poses.len();
+    t.arcs.clear();
+    for w in t.poses.windows(2) {
+        t.arcs.push(Arc::between(&w[0].q, &w[1].q));
+    }
     let r = t.radius;
     t.grid_dt = 0.0;
     if n >= 2 {
@@ -337,13 +345,15 @@ struct State {
     sphere: bool,
     qa: [f64; 4],
     qb: [f64; 4],
+    arc: Arc,
     f: f64,
 }
 
 impl State {
-    /// The attitude (slerp between the bracketing steps, `f` clamped to [0, 1]).
+    /// The attitude: [`dkrrt_collision::interpolate_pose`]'s (slerp between the bracketing
+    /// steps, `f` clamped to [0, 1]), with the interval's arc computed at load.
     fn q(&self) -> [f64; 4] {
-        interpolate_pose(&self.p, &self.qa, &self.p, &self.qb, self.f).1
+        slerp_on(&self.qa, &self.qb, &self.arc, self.f.clamp(0.0, 1.0))
     }
 }
 
@@ -357,8 +367,16 @@ fn state_at(tr: &Track, t: f64) -> State {
     let n = ps.len();
     if n == 1 {
         let a = ps[0];
-        let hold =
-            State { p: a.p, sigma: a.sigma, sigma_pos: a.sigma_pos, sphere: false, qa: a.q, qb: a.q, f: 0.0 };
+        let hold = State {
+            p: a.p,
+            sigma: a.sigma,
+            sigma_pos: a.sigma_pos,
+            sphere: false,
+            qa: a.q,
+            qb: a.q,
+            arc: Arc::between(&a.q, &a.q),
+            f: 0.0,
+        };
         return match tr.after {
             After::Hold => hold,
             After::Extrapolate => {
@@ -397,17 +415,34 @@ fn state_at(tr: &Track, t: f64) -> State {
             sphere: false,
             qa: a.q,
             qb: b.q,
+            arc: tr.arcs[k],
             f,
         };
     }
     // Past the last pose.
     match tr.after {
-        After::Hold => {
-            State { p: b.p, sigma: b.sigma, sigma_pos: b.sigma_pos, sphere: false, qa: b.q, qb: b.q, f: 0.0 }
-        }
+        After::Hold => State {
+            p: b.p,
+            sigma: b.sigma,
+            sigma_pos: b.sigma_pos,
+            sphere: false,
+            qa: b.q,
+            qb: b.q,
+            arc: Arc::between(&b.q, &b.q),
+            f: 0.0,
+        },
         After::Extrapolate => {
             let g = tr.sigma_rate * (t - b.t);
-            State { p, sigma: b.sigma + g, sigma_pos: b.sigma_pos + g, sphere: true, qa: a.q, qb: b.q, f }
+            State {
+                p,
+                sigma: b.sigma + g,
+                sigma_pos: b.sigma_pos + g,
+                sphere: true,
+                qa: a.q,
+                qb: b.q,
+                arc: tr.arcs[k],
+                f,
+            }
         }
     }
 }
