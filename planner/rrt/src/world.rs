@@ -17,7 +17,7 @@
 //! (|v| + ω·R + dσ/dt over its intervals, and over the extrapolation), used by the checker to
 //! space its samples. Loading a forecast allocates nothing (fixed capacity).
 
-use dkrrt_collision::pose::{slerp_on, Arc};
+use dkrrt_collision::pose::{slerp_on, SlerpArc};
 use dkrrt_collision::{quat_angle, Obstacle};
 use dkrrt_msg::{DebrisForecast, DebrisShape, FORECAST_STEPS, MAX_DEBRIS};
 
@@ -53,7 +53,7 @@ struct Track {
     after: After,
     poses: Vec<TimedPose>,
     /// The slerp arc of each interval between consecutive poses (computed once per load).
-    arcs: Vec<Arc>,
+    arcs: Vec<SlerpArc>,
     /// Max surface speed (incl. σ growth) over the poses and the extrapolation, m/s.
     speed: f64,
     /// Growth rate of the position bound (and of σ) after the last pose, m/s.
@@ -295,7 +295,7 @@ fn finish(t: &mut Track) {
     let n = t.poses.len();
     t.arcs.clear();
     for w in t.poses.windows(2) {
-        t.arcs.push(Arc::between(&w[0].q, &w[1].q));
+        t.arcs.push(SlerpArc::between(&w[0].q, &w[1].q));
     }
     let r = t.radius;
     t.grid_dt = 0.0;
@@ -345,7 +345,7 @@ struct State {
     sphere: bool,
     qa: [f64; 4],
     qb: [f64; 4],
-    arc: Arc,
+    arc: SlerpArc,
     f: f64,
 }
 
@@ -374,7 +374,7 @@ fn state_at(tr: &Track, t: f64) -> State {
             sphere: false,
             qa: a.q,
             qb: a.q,
-            arc: Arc::between(&a.q, &a.q),
+            arc: SlerpArc::between(&a.q, &a.q),
             f: 0.0,
         };
         return match tr.after {
@@ -428,7 +428,7 @@ fn state_at(tr: &Track, t: f64) -> State {
             sphere: false,
             qa: b.q,
             qb: b.q,
-            arc: Arc::between(&b.q, &b.q),
+            arc: SlerpArc::between(&b.q, &b.q),
             f: 0.0,
         },
         After::Extrapolate => {

@@ -60,23 +60,23 @@ pub fn interpolate_pose(
 
 /// Spherical linear interpolation of unit quaternions on the shorter arc.
 pub fn slerp(a: &[f64; 4], b: &[f64; 4], f: f64) -> [f64; 4] {
-    slerp_on(a, b, &Arc::between(a, b), f)
+    slerp_on(a, b, &SlerpArc::between(a, b), f)
 }
 
 /// What [`slerp`] needs of a pair of quaternions besides the fraction: computed once for a
 /// pair read at many fractions (the planner's forecast intervals), the same numbers.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Arc {
+pub struct SlerpArc {
     /// −1 when the shorter arc runs to `−b`.
     sign: f64,
     /// The angle between them and its sine; `None` when nearly parallel (normalised lerp).
     angle: Option<(f64, f64)>,
 }
 
-impl Arc {
+impl SlerpArc {
     /// The shorter arc from `a` to `b`.
     #[inline]
-    pub fn between(a: &[f64; 4], b: &[f64; 4]) -> Arc {
+    pub fn between(a: &[f64; 4], b: &[f64; 4]) -> SlerpArc {
         let mut d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
         let sign = if d < 0.0 {
             d = -d;
@@ -90,13 +90,13 @@ impl Arc {
             let th = d.min(1.0).acos();
             Some((th, th.sin()))
         };
-        Arc { sign, angle }
+        SlerpArc { sign, angle }
     }
 }
 
-/// [`slerp`] with the pair's [`Arc`] given.
+/// [`slerp`] with the pair's [`SlerpArc`] given.
 #[inline]
-pub fn slerp_on(a: &[f64; 4], b: &[f64; 4], arc: &Arc, f: f64) -> [f64; 4] {
+pub fn slerp_on(a: &[f64; 4], b: &[f64; 4], arc: &SlerpArc, f: f64) -> [f64; 4] {
     let s = arc.sign;
     let (wa, wb) = match arc.angle {
         None => (1.0 - f, f), // nearly parallel: normalised lerp
