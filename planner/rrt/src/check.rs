@@ -28,7 +28,7 @@ use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::MAX_DEBRIS;
 
-use crate::world::WorldInTime;
+use crate::world::{Near, WorldInTime};
 
 /// Result of checking a stretch of time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -139,7 +139,8 @@ impl Checker {
         }
         self.poser.pose(q, &mut self.caps);
         let (centre, radius) = bounding_sphere(&self.caps);
-        world.obstacles_within(t, extra, mask, &centre, radius + self.cap, &mut self.obs);
+        let near = Near { arm: &self.caps, centre: &centre, radius, cap: self.cap };
+        world.obstacles_within(t, extra, mask, Some(near), &mut self.obs);
         clearance(&self.caps, &self.obs, stop_below, self.cap)
     }
 
@@ -219,7 +220,8 @@ impl Checker {
             } else {
                 // At rest the arm's pose is already computed.
                 self.configs_checked += 1;
-                world.obstacles_within(t, half, mask, &centre, radius + self.cap, &mut self.obs);
+                let near = Near { arm: &self.caps, centre: &centre, radius, cap: self.cap };
+                world.obstacles_within(t, half, mask, Some(near), &mut self.obs);
                 clearance(&self.caps, &self.obs, floor, self.cap)
             };
             out.samples += 1;

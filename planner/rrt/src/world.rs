@@ -18,7 +18,7 @@
 //! space its samples. Loading a forecast allocates nothing (fixed capacity).
 
 use dkrrt_collision::pose::{slerp_on, SlerpArc};
-use dkrrt_collision::{quat_angle, Obstacle};
+use dkrrt_collision::{quat_angle, Obstacle, PosedCapsule};
 use dkrrt_msg::{DebrisForecast, DebrisShape, FORECAST_STEPS, MAX_DEBRIS};
 
 /// One timed pose of a track.
@@ -49,6 +49,9 @@ struct Track {
     id: u32,
     shape: DebrisShape,
     radius: f64,
+    /// `radius` + the shape's offset: every point of the obstacle built at a pose lies within
+    /// this of the pose's position, whichever form it takes.
+    reach: f64,
     lever: f64,
     after: After,
     poses: Vec<TimedPose>,
@@ -91,6 +94,7 @@ impl WorldInTime {
                 id: 0,
                 shape: DebrisShape::default(),
                 radius: 0.0,
+                reach: 0.0,
                 lever: 0.0,
                 after: After::Hold,
                 poses: Vec::with_capacity(FORECAST_STEPS + 1),
@@ -225,20 +229,19 @@ impl WorldInTime {
 
     /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
     pub fn obstacles_at_masked(&self, t: f64, extra: f64, mask: u64, out: &mut Vec<Obstacle>) {
-        self.obstacles_within(t, extra, mask, &[0.0; 3], f64::INFINITY, out);
+        self.obstacles_within(t, extra, mask, None, out);
     }
 
-    /// [`WorldInTime::obstacles_at_masked`] without the tracks whose inflated shape lies
-    /// farther than `reach` from `centre` at `t` (their attitude is never interpolated). With
-    /// `centre`, `reach` = the arm's bounding sphere grown by the checker's cap, what is left
-    /// out could not lower a clearance capped there.
+    /// [`WorldInTime::obstacles_at_masked`], and with `near` without the tracks whose inflated
+    /// shape at `t` lies `near.cap` or more from the arm's bounding sphere or from each of its
+    /// capsules' bounding spheres (their attitude is never interpolated): what is left out
+    /// could not lower a clearance capped at `near.cap`.
     pub fn obstacles_within(
         &self,
         t: f64,
         extra: f64,
         mask: u64,
-        centre: &[f64; 3],
-        reach: f64,
+        near: Option<Near>,
         out: &mut Vec<Obstacle>,
     ) {
         out.clear();
@@ -248,13 +251,18 @@ impl WorldInTime {
             }
             let s = state_at(tr, t);
             let base = self.margin + extra;
-            if reach.is_finite() {
-                let d = ((s.p[0] - centre[0]).powi(2)
-                    + (s.p[1] - centre[1]).powi(2)
-                    + (s.p[2] - centre[2]).powi(2))
-                .sqrt();
-                // The shape (or the bounding sphere), inflated, lies within this of `s.p`.
-                if d - (tr.radius + s.sigma.max(s.sigma_pos) + base) >= reach {
+            if let Some(nr) = &near {
+                // The shape (or the bounding sphere), inflated, lies within `r` of `s.p`.
+                let r = tr.reach + s.sigma.max(s.sigma_pos) + base;
+                if dist3(&s.p, nr.centre) - r >= nr.radius + nr.cap {
+                    continue;
+                }
+                // Per capsule: [`dkrrt_collision::clearance`] measures no pair whose bounding
+                // spheres are `cap` apart, so a track no capsule comes that near to is left out
+                // (before its attitude is interpolated). `r` bounds the obstacle's own bounding
+                // sphere and inflation from `s.p`; the slack covers rounding, so what is left
+                // out is exactly what `clearance` would have skipped.
+                if !nr.arm.iter().any(|c| dist3(&s.p, &c.centre) - c.bound - r < nr.cap + 1e-9) {
                     continue;
                 }
             }
@@ -298,6 +306,8 @@ fn finish(t: &mut Track) {
         t.arcs.push(SlerpArc::between(&w[0].q, &w[1].q));
     }
     let r = t.radius;
+    let o = &t.shape.offset;
+    t.reach = r + (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
     t.grid_dt = 0.0;
     if n >= 2 {
         let dt = t.poses[1].t - t.poses[0].t;
@@ -336,6 +346,20 @@ fn finish(t: &mut Track) {
 }
 
 const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
+
+fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Where the checker looks: the arm's posed capsules, their bounding sphere (`centre`,
+/// `radius`), and the clearance cap (pairs farther apart are not measured).
+#[derive(Debug, Clone, Copy)]
+pub struct Near<'a> {
+    pub arm: &'a [PosedCapsule],
+    pub centre: &'a [f64; 3],
+    pub radius: f64,
+    pub cap: f64,
+}
 
 /// A track's state at a time, with the attitude left to compute ([`State::q`]).
 struct State {
