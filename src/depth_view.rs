@@ -5,12 +5,13 @@
 //! The rig: six cameras at the module's origin, one per cube face (the scenes' objects lie
 //! all around it), each the scenario default's image and noise with a 90° vertical field of
 //! view, capturing at `rate_hz` and delivering `latency_s` later; the arm is not in these runs.
-//! An object two faces see in one capture is reported once, from the first face that shows it.
+//! An object two faces see in one capture is reported once, from the first face that shows it
+//! whole (else its best partial view, one capture later, flagged partial).
 
 use dkrrt_camera::CameraConfig;
 use dkrrt_debris::{DebrisWorld, Observation, Scene, SensorConfig};
 use dkrrt_depthpose::perception::DepthPerception;
-use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed};
+use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed, DEBRIS_PARTIAL};
 use dkrrt_predictor::eval::{record, EvalError, Recording};
 use dkrrt_sim::camera::{CaptureClock, Renderer, Snapshot};
 
@@ -52,9 +53,16 @@ pub fn record_depth(
     let mut per = front_end();
     let (mut obs, mut obs_shapes) = (Vec::new(), Vec::new());
     let (mut ep, mut ea) = (Vec::new(), Vec::new());
+    // The capture before this one (stamp, time, number): partial views come one capture late.
+    let (mut prev, mut this) = ((u64::MAX, 0.0, 0u64), (u64::MAX, 0.0, 0u64));
     each_capture(&mut world, duration, sim_dt, rate, &mut rdr, |capture, t, _, img, _| {
+        if img.header.stamp_ns != this.0 {
+            (prev, this) = (this, (img.header.stamp_ns, t, capture));
+        }
         let n = per.convert(img, &mut frame);
         for it in &frame.items[..n] {
+            let partial = it.flags & DEBRIS_PARTIAL != 0;
+            let (t, capture) = if it.t_meas_ns == prev.0 { (prev.1, prev.2) } else { (t, capture) };
             obs.push(Observation {
                 id: it.id,
                 t,
@@ -64,9 +72,14 @@ pub fn record_depth(
                 v: [0.0; 3],
                 w: [0.0; 3],
                 has_rates: false,
+                partial,
                 seq: capture as u32,
             });
             obs_shapes.push((it.shape, it.bounding_radius));
+            // The front end's error on the views it saw whole.
+            if partial {
+                continue;
+            }
             if let Some(x) = rec.truth.at(it.id, t) {
                 ep.push(
                     ((it.p[0] - x[0]).powi(2) + (it.p[1] - x[1]).powi(2) + (it.p[2] - x[2]).powi(2)).sqrt(),

@@ -131,6 +131,21 @@ fn the_predictor_can_see_through_the_depth_camera() {
     assert_eq!(p.observations.learned_views, 0, "the classical front end");
 }
 
+/// The camera rig (`camera-rig.toml`): objects straddling two of its cameras are cut by both
+/// frames; they reach the predictor as partial views (a loose position, no attitude) instead
+/// of being lost, and the rig's episode is reached without contact.
+#[test]
+fn a_rigs_cut_views_reach_the_predictor_as_partial_views() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/camera-rig.toml");
+    let sc = Scenario::load(path).unwrap();
+    let a = dkrrt::lockstep::run(&sc).unwrap();
+    let p = a.predictor.unwrap();
+    assert!(p.observations.partial_views > 0, "{:?}", p.observations);
+    assert!(p.observations.partial_views < p.observations.items);
+    assert!(p.gate.partial > 0 && p.gate.partial <= p.observations.partial_views, "{:?}", p.gate);
+    assert!(!a.debris.unwrap().collided() && a.goal_reached_s.is_some());
+}
+
 /// `predictor.front_end = "learned"`: the shipped visual features f_θ read the camera's views
 /// of the objects (every view large enough), the run reaches its goal without contact; a bad
 /// model file is refused naming the field and the file.

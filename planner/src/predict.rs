@@ -16,7 +16,7 @@ use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SC
 use dkrrt_depthpose::perception::DepthPerception;
 use dkrrt_msg::{
     ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
-    FORECAST_STEPS, MAX_DEBRIS,
+    DEBRIS_PARTIAL, FORECAST_STEPS, MAX_DEBRIS,
 };
 use dkrrt_predictor::axis::AxisPrecession;
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
@@ -76,6 +76,9 @@ pub struct ObsCounters {
     pub items_gated: u64,
     /// Depth frames: object views the learned front end's f_θ read (0 with the classical one).
     pub learned_views: u64,
+    /// Depth frames: items from views cut by the image border, flagged `DEBRIS_PARTIAL` (no
+    /// camera of their capture showed the object whole).
+    pub partial_views: u64,
 }
 
 impl ObsCounters {
@@ -325,6 +328,7 @@ impl PredictorCore {
                 v: it.v,
                 w: it.w,
                 has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
+                partial: it.flags & DEBRIS_PARTIAL != 0,
                 seq: frame.header.seq as u32,
             };
             match self.pred.observe(&o) {
@@ -443,6 +447,7 @@ impl PredictorCore {
         let mut seen = self.seen.take().expect("the depth buffer is back after each use");
         self.perception.convert(img, &mut seen);
         self.counters.learned_views = self.perception.stats.learned;
+        self.counters.partial_views = self.perception.stats.partial_reported;
         seen.header = img.header;
         seen
     }

@@ -55,7 +55,16 @@ pub struct PoseEstimate {
     pub axes: [[f64; 3]; 3],
     /// Standard deviation of the points along each axis, m.
     pub spread: [f64; 3],
+    /// Valid pixels on the image's border: the frame may cut the object there.
+    pub cut: usize,
+    /// Valid pixels next to a valid pixel of another instance (or the arm) that is nearer by
+    /// more than [`OCCLUSION_STEP`]: something in front may hide part of the object there.
+    pub occluded: usize,
 }
+
+/// Depth step (m) by which a neighbouring pixel of another instance must be nearer for a
+/// pixel to count as [`PoseEstimate::occluded`] (depth noise of touching objects is smaller).
+pub const OCCLUSION_STEP: f64 = 0.05;
 
 #[derive(Debug, Clone, Copy, Default)]
 struct Sums {
@@ -66,6 +75,8 @@ struct Sums {
     ss: [[f64; 3]; 3],
     /// First point (a shift that keeps the sums well conditioned).
     origin: [f64; 3],
+    cut: usize,
+    occluded: usize,
 }
 
 /// Per-instance sums, preallocated.
@@ -118,10 +129,27 @@ impl Extractor {
                 let p: [f64; 3] = std::array::from_fn(|i| {
                     cam.position[i] + r[i][0] * c[0] + r[i][1] * c[1] + r[i][2] * c[2]
                 });
+                let (w_px, h_px) = (cam.width, cam.height);
+                let border = u == 0 || v == 0 || u + 1 == w_px || v + 1 == h_px;
+                // A nearer valid pixel of another instance (or the arm) beside this one.
+                let hidden = |k2: usize| {
+                    let i2 = instance[k2];
+                    if i2 == 0 || i2 == inst {
+                        return false;
+                    }
+                    let z2 = depth(k2);
+                    z2 > 0.0 && z2 < z - OCCLUSION_STEP
+                };
+                let occluded = (u > 0 && hidden(k - 1))
+                    || (u + 1 < w_px && hidden(k + 1))
+                    || (v > 0 && hidden(k - w_px))
+                    || (v + 1 < h_px && hidden(k + w_px));
                 let s = &mut self.sums[inst as usize];
                 if s.n == 0 {
                     s.origin = p;
                 }
+                s.cut += border as usize;
+                s.occluded += occluded as usize;
                 let d = [p[0] - s.origin[0], p[1] - s.origin[1], p[2] - s.origin[2]];
                 let w = z * z;
                 s.n += 1;
@@ -157,6 +185,8 @@ impl Extractor {
                 covariance: std::array::from_fn(|i| std::array::from_fn(|j| cov[(i, j)])),
                 axes: [axis(0), axis(1), axis(2)],
                 spread: std::array::from_fn(|k| eig.eigenvalues[order[k]].max(0.0).sqrt()),
+                cut: s.cut,
+                occluded: s.occluded,
             };
             n_out += 1;
         }

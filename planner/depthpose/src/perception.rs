@@ -20,12 +20,18 @@
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
-//! * **Partial views** are not reported: a view whose longest spread is under [`PART`] of
-//!   the longest seen of that object (cut by the frame, hidden in part by another object or
-//!   the arm, a rod end-on) would put its centre off, and the predictor's position bound
-//!   would grow on the jumps; the predictor coasts through them.
+//! * **Partial views**: a view whose longest spread is under [`PART`] of the longest seen of
+//!   that object (hidden in part by another object or the arm, a rod end-on, a noisy view of
+//!   a few pixels) would put its centre off, and the predictor's position bound would grow on
+//!   the jumps: it is not reported, the predictor coasts through it. A view **cut by the
+//!   image border** (a pixel on it; [`crate::PoseEstimate::cut`]) with one of its two largest
+//!   spreads under [`WHOLE`] of the largest seen is held back: when no camera of the capture
+//!   shows the object whole, its cut view with the most pixels is reported with the next
+//!   capture, flagged [`DEBRIS_PARTIAL`], with the attitude and shape last seen whole. The
+//!   predictor takes its position loosely and its attitude not at all, so an object that
+//!   straddles two cameras of a rig, or the edge of a single camera's view, is still tracked.
 //! * **Rigs**: an object several cameras see in one capture (frames with the same stamp) is
-//!   reported once, from the first frame that shows it.
+//!   reported once, from the first frame that shows it whole.
 //! * **A learned axis model** ([`DepthPerception::with_model`], the visual features f_θ of
 //!   `dkrrt-visual`): the attitude and the class come from the axes the model reads from the
 //!   view instead: a box (long and short axis seen: body x along the long axis, body z along
@@ -35,7 +41,9 @@
 //!
 //! Allocation-free after construction.
 
-use dkrrt_msg::{DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEPTH_MAX_INSTANCES, MAX_DEBRIS};
+use dkrrt_msg::{
+    DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEBRIS_PARTIAL, DEPTH_MAX_INSTANCES, MAX_DEBRIS,
+};
 
 use dkrrt_collision::pose::{quat_mul as mul, rotation_matrix as rotation};
 
@@ -90,6 +98,12 @@ pub const DEFAULT_MARGIN_M: f64 = 0.15;
 /// part (cut by the frame, hidden in part, or end-on): its centre would be off.
 pub const PART: f64 = 0.75;
 
+/// A view cut by the image border is still whole enough when its two largest spreads are at
+/// least this share of the largest seen: cutting `c` off an extent moves the centroid by `c/2`
+/// and the spread by `c/√12`, so the centre is off by at most about `√3 · (1 − WHOLE)` of the
+/// object's spreads (9 cm for a 1 m half extent).
+pub const WHOLE: f64 = 0.9;
+
 /// Objects remembered (the oldest seen is forgotten first).
 pub const MAX_KNOWN: usize = 128;
 
@@ -102,9 +116,14 @@ struct Known {
     /// Views the learned model read, and those that showed a long / a short axis.
     votes: [u32; 3],
     last_frame: u64,
-    /// Capture time of its last report, ns (`u64::MAX`: none): another camera's frame of the
-    /// same capture does not report it again.
+    /// Capture time of its last whole report, ns (`u64::MAX`: none): another camera's frame
+    /// of the same capture does not report it again.
     last_t_ns: u64,
+    /// Its shape and bounding radius as last reported whole.
+    shape: Option<(DebrisShape, f64)>,
+    /// Its best partial view of the current capture (and that view's pixels), reported with
+    /// the next capture unless a camera shows it whole in this one.
+    pending: Option<(DebrisObs, usize)>,
 }
 
 /// Counters.
@@ -117,8 +136,11 @@ pub struct PerceptionStats {
     pub dropped: u64,
     /// Objects another camera of the rig already reported for the same capture (not again).
     pub repeats: u64,
-    /// Objects seen in part (their longest extent shorter than seen before): not reported.
+    /// Views of an object in part (module docs): not reported whole.
     pub partial: u64,
+    /// Objects reported from a view cut by the image border (flagged [`DEBRIS_PARTIAL`]): no
+    /// camera showed them whole in that capture.
+    pub partial_reported: u64,
     /// Views the learned axis model read.
     pub learned: u64,
 }
@@ -133,6 +155,8 @@ pub struct DepthPerception {
     pub margin_m: f64,
     pub stats: PerceptionStats,
     model: Option<Box<dyn AxisModel>>,
+    /// Capture time of the frames being converted, ns.
+    capture_ns: u64,
 }
 
 impl Default for DepthPerception {
@@ -144,6 +168,7 @@ impl Default for DepthPerception {
             margin_m: DEFAULT_MARGIN_M,
             stats: PerceptionStats::default(),
             model: None,
+            capture_ns: u64::MAX,
         }
     }
 }
@@ -209,6 +234,23 @@ impl DepthPerception {
             &mut self.est[..],
         );
         let mut count = 0;
+        if img.header.stamp_ns != self.capture_ns {
+            // The last capture's objects no camera showed whole: their best partial view.
+            for kn in self.known.iter_mut() {
+                let Some((o, _)) = kn.pending.take() else { continue };
+                if kn.last_t_ns == o.t_meas_ns {
+                    continue;
+                }
+                if count == MAX_DEBRIS {
+                    self.stats.dropped += 1;
+                    continue;
+                }
+                out.items[count] = o;
+                count += 1;
+                self.stats.partial_reported += 1;
+            }
+            self.capture_ns = img.header.stamp_ns;
+        }
         for j in 0..n {
             let e = self.est[j];
             let k = e.instance as usize;
@@ -230,10 +272,36 @@ impl DepthPerception {
                 kn.spread[i] = kn.spread[i].max(e.spread[i]);
             }
             kn.last_frame = frame;
-            if e.spread[0] < PART * kn.spread[0] {
-                // Seen in part: its centre would be off (the predictor coasts meanwhile). Another
-                // camera of the same capture may still report it whole.
+            if e.cut == 0 && e.spread[0] < PART * kn.spread[0] {
+                // Hidden in part, end-on, or a noisy view of a few pixels: not reported (the
+                // predictor coasts meanwhile). Another camera may still show it whole.
                 self.stats.partial += 1;
+                continue;
+            }
+            if e.cut > 0 && (0..2).any(|i| e.spread[i] < WHOLE * kn.spread[i]) {
+                // Cut by the frame: its centre may be off by up to its size, and its axes wrong.
+                // Another camera of the same capture may still show it whole; if none does, the
+                // cut view with the most pixels is reported with the next capture (module docs).
+                self.stats.partial += 1;
+                let better =
+                    kn.pending.is_none_or(|(o, px)| o.t_meas_ns != img.header.stamp_ns || px < e.points);
+                if better {
+                    let (shape, radius) =
+                        kn.shape.unwrap_or_else(|| shape_of(classify(&kn.spread), &kn.spread, self.margin_m));
+                    let p = visible_centre(&e, &cam, classify(&kn.spread));
+                    let o = DebrisObs {
+                        id,
+                        flags: DEBRIS_PARTIAL,
+                        t_meas_ns: img.header.stamp_ns,
+                        p,
+                        q: kn.q,
+                        v: [0.0; 3],
+                        w: [0.0; 3],
+                        bounding_radius: radius,
+                        shape,
+                    };
+                    kn.pending = Some((o, e.points));
+                }
                 continue;
             }
             kn.last_t_ns = img.header.stamp_ns;
@@ -292,13 +360,9 @@ impl DepthPerception {
                     Class::Bulky => kn.q,
                 };
             }
-            let mut p = e.centroid;
-            if classical == Class::Bulky {
-                let ray: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
-                let l = norm(&ray).max(1e-9);
-                let back = 2.83 * e.spread[2];
-                p = std::array::from_fn(|i| p[i] + ray[i] / l * back);
-            }
+            let p = visible_centre(&e, &cam, classical);
+            kn.shape = Some((shape, radius));
+            kn.pending = None;
             out.items[count] = DebrisObs {
                 id,
                 flags: 0,
@@ -330,6 +394,8 @@ impl DepthPerception {
             votes: [0; 3],
             last_frame: 0,
             last_t_ns: u64::MAX,
+            shape: None,
+            pending: None,
         };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
@@ -339,6 +405,19 @@ impl DepthPerception {
         self.known[i] = fresh;
         i
     }
+}
+
+/// The centre of an object of class `c` from its view `e` (module docs: a bulky object's
+/// visible centroid lies in front of its centre).
+fn visible_centre(e: &PoseEstimate, cam: &Intrinsics, c: Class) -> [f64; 3] {
+    let p = e.centroid;
+    if c != Class::Bulky {
+        return p;
+    }
+    let ray: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
+    let l = norm(&ray).max(1e-9);
+    let back = 2.83 * e.spread[2];
+    std::array::from_fn(|i| p[i] + ray[i] / l * back)
 }
 
 /// The camera of a message, as the extractor takes it.

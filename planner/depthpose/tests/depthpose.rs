@@ -119,3 +119,49 @@ fn small_instances_are_left_out_and_extraction_allocates_nothing() {
     assert_eq!(n, 1);
     assert_eq!((s.allocs, s.reallocs), (0, 0), "{s:?}");
 }
+
+/// Valid pixels on the image border count as `cut`; pixels beside a nearer pixel of another
+/// instance or of the arm (by more than `OCCLUSION_STEP`) as `occluded`.
+#[test]
+fn cut_and_occluded_pixels_are_counted() {
+    let (w, h) = (10, 8);
+    let mut depth = vec![0.0f32; w * h];
+    let mut inst = vec![0u8; w * h];
+    let mut put = |u: usize, v: usize, z: f32, i: u8| {
+        depth[v * w + u] = z;
+        inst[v * w + u] = i;
+    };
+    // Instance 1 in the middle at 5 m; instance 3 beside it at 4 m (nearer) and instance 4
+    // beside it at 4.98 m (touching: not nearer by the step); the arm below it at 2 m.
+    for v in 3..5 {
+        for u in 4..7 {
+            put(u, v, 5.0, 1);
+        }
+        put(7, v, 4.0, 3);
+        put(3, v, 4.98, 4);
+    }
+    put(4, 5, 2.0, 255);
+    // Instance 2 in the top left corner at 3 m.
+    for v in 0..2 {
+        for u in 0..2 {
+            put(u, v, 3.0, 2);
+        }
+    }
+    let cam = Intrinsics {
+        width: w,
+        height: h,
+        f: 10.0,
+        cx: 5.0,
+        cy: 4.0,
+        position: [0.0; 3],
+        rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    };
+    let mut ex = Extractor::default();
+    ex.min_points = 1;
+    let mut out = [PoseEstimate::default(); 8];
+    let n = ex.extract(&cam, &depth, &inst, &mut out);
+    let got: Vec<_> = out[..n].iter().map(|e| (e.instance, e.points, e.cut, e.occluded)).collect();
+    // 1: the two pixels beside instance 3 and the one above the arm; 2: three of its four
+    // pixels on the border; 3 and 4 are in front of (or level with) their neighbours.
+    assert_eq!(got, [(1, 6, 0, 3), (2, 4, 3, 0), (3, 2, 0, 0), (4, 2, 0, 0)]);
+}

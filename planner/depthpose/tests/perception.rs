@@ -182,6 +182,49 @@ fn a_partial_view_is_not_reported() {
     assert!(reported(&mut fresh, &mut out, &[rod, panel], 1.0));
 }
 
+/// An object cut by the frame's edge is held back: with the next capture it is reported
+/// flagged `DEBRIS_PARTIAL`, stamped with its own capture, with the attitude and shape last
+/// seen whole; when another camera of the same capture shows it whole, only that view is
+/// reported.
+#[test]
+fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
+    use dkrrt_msg::DEBRIS_PARTIAL;
+    use parry3d_f64::shape::SharedShape;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // A 1.8 m rod along y, 4 m ahead: whole in view at y = 0; at y = 3.08 the frame's side
+    // edge (the default camera sees ±37.6° across) cuts it in half.
+    let rod = |y: f64| (7, SharedShape::capsule_z(0.9, 0.03), [4.0, y, 0.0], [h, -h, 0.0, 0.0], 0.93);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let mut items = |per: &mut DepthPerception, out: &mut DebrisObservation, objs: &[_], t: f64| {
+        let n = per.convert(&render(objs, &exact(), t), out);
+        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
+    };
+    let whole = items(&mut per, &mut out, &[rod(0.0)], 1.0);
+    assert_eq!(whole.len(), 1);
+    assert_eq!(whole[0].flags & DEBRIS_PARTIAL, 0);
+    assert!(items(&mut per, &mut out, &[rod(3.08)], 1.1).is_empty(), "held back");
+    assert_eq!(per.stats.partial, 1);
+    let next = items(&mut per, &mut out, &[rod(0.0)], 1.2);
+    assert_eq!(next.len(), 2, "the held view, then this capture's whole view");
+    let (cut, now) = (next[0], next[1]);
+    assert_eq!(cut.flags, DEBRIS_PARTIAL);
+    assert_eq!(cut.t_meas_ns, 1_100_000_000);
+    assert_eq!((cut.q, cut.shape), (whole[0].q, whole[0].shape));
+    // Its centroid lies on the visible half of the rod.
+    let d = ((cut.p[0] - 4.0).powi(2) + (cut.p[1] - 3.08).powi(2) + cut.p[2].powi(2)).sqrt();
+    assert!(d < 0.9, "the cut view's centre {:?}", cut.p);
+    assert!(cut.p[1].abs() < 3.08, "the visible half is the inner one: {:?}", cut.p);
+    assert_eq!((now.flags, now.t_meas_ns), (0, 1_200_000_000));
+    assert_eq!(per.stats.partial_reported, 1);
+    // A rig: one camera of the capture sees it cut, the next whole: the whole view is
+    // reported, and nothing is held for the next capture.
+    assert!(items(&mut per, &mut out, &[rod(3.08)], 1.3).is_empty());
+    assert_eq!(items(&mut per, &mut out, &[rod(0.0)], 1.3).len(), 1);
+    assert_eq!(items(&mut per, &mut out, &[], 1.4).len(), 0);
+    assert_eq!(per.stats.partial_reported, 1);
+}
+
 /// An axis model that knows the truth: the body x and z axes of a given attitude.
 struct Oracle {
     r: [[f64; 3]; 3],

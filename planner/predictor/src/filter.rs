@@ -240,12 +240,20 @@ impl TrackFilter {
 
     /// Measurement update with a pose at time `t > self.t`.
     pub fn update(&mut self, cfg: &FilterConfig, t: f64, p: &[f64; 3], q: &[f64; 4]) {
-        self.update_with(cfg, cfg.pos_sigma, t, p, q);
+        self.update_with(cfg, cfg.pos_sigma, t, p, Some(q));
     }
 
     /// [`TrackFilter::update`] with this pose's own position noise `pos_sigma` (m, per axis)
-    /// in place of the configured one.
-    pub fn update_with(&mut self, cfg: &FilterConfig, pos_sigma: f64, t: f64, p: &[f64; 3], q: &[f64; 4]) {
+    /// in place of the configured one; `q = None`: the attitude was not measured (it is only
+    /// predicted to `t`).
+    pub fn update_with(
+        &mut self,
+        cfg: &FilterConfig,
+        pos_sigma: f64,
+        t: f64,
+        p: &[f64; 3],
+        q: Option<&[f64; 4]>,
+    ) {
         let dt = t - self.t;
         debug_assert!(dt > 0.0);
         let xp = self.predicted(cfg, t);
@@ -274,6 +282,11 @@ impl TrackFilter {
         }
         // Attitude (error state in body axes).
         self.att.predict(dt, cfg.ang_accel_psd);
+        let Some(q) = q else {
+            self.x[6..13].copy_from_slice(&xp[6..13]);
+            self.t = t;
+            return;
+        };
         let (k0, k1) = self.att.update(cfg.att_sigma.powi(2));
         let e = quat_mul(&quat_conj(&xp[6..10]), q);
         let d = quat_log(&e);

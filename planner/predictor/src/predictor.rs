@@ -66,6 +66,9 @@ pub struct PredictorConfig {
     /// object every frame); poses from depth frames: objects pass behind the arm and out of
     /// the views.
     pub revive_s: f64,
+    /// Position noise of a partial view ([`Observation::partial`]) per metre of the object's
+    /// size: its centroid can lie anywhere on the object. Its attitude is not used.
+    pub partial_sigma_per_m: f64,
     /// Event: minimum time between two events of one track and channel [s].
     pub event_refractory: f64,
     /// Event: the test must fail on this many model pairs in a row (1: any one; poses from
@@ -123,6 +126,7 @@ impl Default for PredictorConfig {
             pos_sigma_per_m: 0.0,
             track_sigmas: 0.0,
             revive_s: 0.0,
+            partial_sigma_per_m: 0.3,
             event_min_obs: 25,
             min_obs_for_forecast: 5,
         }
@@ -179,6 +183,8 @@ pub struct GateStats {
     /// Dropped tracks taken up again by their object's next pose
     /// ([`PredictorConfig::revive_s`]).
     pub revived: u64,
+    /// Accepted observations from partial views ([`Observation::partial`]).
+    pub partial: u64,
     /// Detected events (one-step residual beyond the bound), position or attitude.
     pub events: u64,
     /// One-step model pairs processed (residual test and, for online methods, RLS).
@@ -616,7 +622,8 @@ impl DebrisPredictor {
         // Physical plausibility gate against the last accepted observation.
         let dt_obs = o.t - tr.filter.t;
         let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
-        let da = quat_angle(&q, &tr.last_obs_q);
+        // A partial view's attitude is not measured (module docs of `DEBRIS_PARTIAL`).
+        let da = if o.partial { 0.0 } else { quat_angle(&q, &tr.last_obs_q) };
         let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin {
             Some(RejectReason::PositionJump)
         } else if da > cfg.max_spin * dt_obs + cfg.jump_att_margin {
@@ -640,12 +647,16 @@ impl DebrisPredictor {
         }
         tr.rejects = 0;
         let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
-        let sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
+        let mut sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
+        if o.partial {
+            sigma = sigma.max(cfg.partial_sigma_per_m * tr.size);
+            self.stats.partial += 1;
+        }
         // Of a position residual, what this pose's own noise explains beyond the event test's
         // fixed allowance (three of its deviations; 0 for the pose sensor): a residual widens
         // the bound only by what lies beyond it.
         let extra = (3.0 * sigma - cfg.event_pos_noise).max(0.0);
-        tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, &q);
+        tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, (!o.partial).then_some(&q));
         if o.has_rates {
             tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
         }
@@ -656,7 +667,7 @@ impl DebrisPredictor {
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
             self.stats.maneuvers += 1;
         }
-        if self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
+        if !o.partial && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
             tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
             tr.euler.update(
                 o.t,
@@ -675,7 +686,9 @@ impl DebrisPredictor {
         }
         tr.n_obs += 1;
         tr.last_obs_p = o.p;
-        tr.last_obs_q = q;
+        if !o.partial {
+            tr.last_obs_q = q;
+        }
         tr.pos_bound.relax(dt_obs);
         tr.att_bound.relax(dt_obs);
         self.stats.accepted += 1;
@@ -714,7 +727,7 @@ impl DebrisPredictor {
             let armed = tr.n_obs >= cfg.event_min_obs;
             let fails = [
                 tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise - extra, cfg.event_factor),
-                tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
+                !o.partial && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
             ];
             for c in 0..2 {
                 tr.event_run[c] = if fails[c] { tr.event_run[c] + 1 } else { 0 };
@@ -748,7 +761,9 @@ impl DebrisPredictor {
                 let mut ya = [0.0; 7];
                 ya.copy_from_slice(&xn[ROT]);
                 align_quaternion(&mut ya[0..4], &xp[QUAT]);
-                if m.att_rollout == Rollout::Linear {
+                if o.partial {
+                    // No attitude was measured: nothing to learn from.
+                } else if m.att_rollout == Rollout::Linear {
                     m.att_lift.lift(&ya, &mut self.phi_a_next);
                     tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &self.phi_a_next[..m.att.p]);
                 } else {

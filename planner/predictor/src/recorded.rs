@@ -87,6 +87,7 @@ pub fn read_observations(input: impl BufRead, origin: &str) -> Result<Vec<Observ
             v,
             w,
             has_rates: l.v.is_some(),
+            partial: false,
             seq: i as u32,
         });
     }

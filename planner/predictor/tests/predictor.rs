@@ -452,3 +452,34 @@ fn a_forecast_nobody_reads_can_be_left_to_its_calibration() {
     assert!(built > 100 && st.events + st.maneuvers > 0, "{built} forecasts built, {st:?}");
     assert_eq!((full.stats().events, full.stats().maneuvers), (st.events, st.maneuvers));
 }
+
+/// A partial view (`Observation::partial`: an object cut by a camera's frame) moves the
+/// position estimate only loosely (its noise is `partial_sigma_per_m` of the object's size),
+/// leaves the attitude to the prediction (a 90° turn in it is neither gated nor taken) and
+/// trips no manoeuvre; the same pose seen whole pulls the estimate most of the way.
+#[test]
+fn a_partial_view_moves_the_position_loosely_and_leaves_the_attitude() {
+    let run = |partial: bool| {
+        let mut pr = cv_predictor();
+        let dt = 0.05;
+        let q0 = [1.0, 0.0, 0.0, 0.0];
+        for k in 0..40 {
+            pr.observe(&obs(4, k as f64 * dt, [2.0, 0.0, 0.0], q0));
+            pr.set_shape(4, &dkrrt_msg::DebrisShape::capsule(0.9, 0.1));
+        }
+        let t = 40.0 * dt;
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut o = obs(4, t, [2.2, 0.0, 0.0], if partial { [h, h, 0.0, 0.0] } else { q0 });
+        o.partial = partial;
+        assert_eq!(pr.observe(&o), ObserveOutcome::Accepted);
+        let tr = pr.track(4).unwrap();
+        (tr.state[0] - 2.0, quat_angle(&tr.state[6..10], &q0), pr.stats().partial, pr.stats().maneuvers)
+    };
+    let (moved_whole, _, n_whole, _) = run(false);
+    let (moved_partial, turned, n_partial, manoeuvres) = run(true);
+    assert!(moved_whole > 0.1, "a whole view pulls: {moved_whole}");
+    // σ = 0.3 × 1 m against the filter's few millimetres: the partial view barely moves it.
+    assert!(moved_partial > 0.0 && moved_partial < 0.01, "a partial view pulls loosely: {moved_partial}");
+    assert!(turned < 1e-9, "the attitude is not measured: turned {turned}");
+    assert_eq!((n_whole, n_partial, manoeuvres), (0, 1, 0));
+}

@@ -271,6 +271,11 @@ pub struct Heartbeat {
 /// [`DebrisObs`] flag: `v` and `w` hold measured velocities.
 pub const DEBRIS_HAS_VELOCITY: u32 = 1;
 
+/// [`DebrisObs`] flag: the pose comes from a partial view (an object cut by the image border
+/// or hidden in part): `p` is good only to about the object's size and `q` is not measured
+/// (the last attitude seen whole).
+pub const DEBRIS_PARTIAL: u32 = 2;
+
 /// [`DebrisShape::kind`] values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]

@@ -32,6 +32,9 @@ pub struct Observation {
     pub w: [f64; 3],
     /// Whether `v` and `w` are filled.
     pub has_rates: bool,
+    /// From a partial view (a camera's object cut by the frame or hidden in part): `p` is
+    /// good only to about the object's size, `q` is not measured.
+    pub partial: bool,
     /// Sample sequence number (same for all records of one sample instant).
     pub seq: u32,
 }
@@ -280,6 +283,7 @@ impl Sensor {
                 v,
                 w,
                 has_rates: c.report_rates,
+                partial: false,
                 seq,
             };
             if self.len == QUEUE_CAP {
