@@ -289,17 +289,7 @@ impl DepthPerception {
                     let (shape, radius) =
                         kn.shape.unwrap_or_else(|| shape_of(classify(&kn.spread), &kn.spread, self.margin_m));
                     let p = visible_centre(&e, &cam, classify(&kn.spread));
-                    let o = DebrisObs {
-                        id,
-                        flags: DEBRIS_PARTIAL,
-                        t_meas_ns: img.header.stamp_ns,
-                        p,
-                        q: kn.q,
-                        v: [0.0; 3],
-                        w: [0.0; 3],
-                        bounding_radius: radius,
-                        shape,
-                    };
+                    let o = item(id, DEBRIS_PARTIAL, img.header.stamp_ns, p, kn.q, (shape, radius));
                     kn.pending = Some((o, e.points));
                 }
                 continue;
@@ -363,17 +353,7 @@ impl DepthPerception {
             let p = visible_centre(&e, &cam, classical);
             kn.shape = Some((shape, radius));
             kn.pending = None;
-            out.items[count] = DebrisObs {
-                id,
-                flags: 0,
-                t_meas_ns: img.header.stamp_ns,
-                p,
-                q: kn.q,
-                v: [0.0; 3],
-                w: [0.0; 3],
-                bounding_radius: radius,
-                shape,
-            };
+            out.items[count] = item(id, 0, img.header.stamp_ns, p, kn.q, (shape, radius));
             count += 1;
         }
         out.count = count as u32;
@@ -405,6 +385,18 @@ impl DepthPerception {
         self.known[i] = fresh;
         i
     }
+}
+
+/// An observation item without rates.
+fn item(
+    id: u32,
+    flags: u32,
+    t_ns: u64,
+    p: [f64; 3],
+    q: [f64; 4],
+    (shape, radius): (DebrisShape, f64),
+) -> DebrisObs {
+    DebrisObs { id, flags, t_meas_ns: t_ns, p, q, v: [0.0; 3], w: [0.0; 3], bounding_radius: radius, shape }
 }
 
 /// The centre of an object of class `c` from its view `e` (module docs: a bulky object's
