@@ -28,7 +28,7 @@ use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::MAX_DEBRIS;
 
-use crate::world::{Near, WorldInTime};
+use crate::world::{Gaps, Near, WorldInTime};
 
 /// Result of checking a stretch of time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,6 +66,8 @@ pub struct Checker {
     pub cap: f64,
     /// Configurations checked so far.
     pub configs_checked: u64,
+    /// The last sample's gap per track ([`WorldInTime::obstacles_gapped`]).
+    gaps: Gaps,
 }
 
 impl Checker {
@@ -89,6 +91,7 @@ impl Checker {
             relief: None,
             cap: 1.0,
             configs_checked: 0,
+            gaps: Gaps::default(),
         }
     }
 
@@ -185,7 +188,9 @@ impl Checker {
     }
 
     /// Checks the motion `at(t)` over `[t0, t1]` (times past `t_end` are not checked: beyond
-    /// the look-ahead nothing is known). `moving = false` for a rest (`at` constant).
+    /// the look-ahead nothing is known). `moving = false` for a rest (`at` constant). A moving
+    /// arm is bounded by the joint speed limits ([`Checker::arm_speed`]); a motion known to be
+    /// slower is better checked with [`Checker::check_motion`].
     pub fn check(
         &mut self,
         world: &WorldInTime,
@@ -193,6 +198,29 @@ impl Checker {
         t1: f64,
         t_end: f64,
         moving: bool,
+        at: impl FnMut(f64) -> [f64; NJ],
+    ) -> Check {
+        let v_arm = if moving { Some(self.arm_speed) } else { None };
+        self.check_motion(world, t0, t1, t_end, v_arm, at)
+    }
+
+    /// The speed bound of a motion whose joints move at most at `speed[j]` (rad/s): `Σ_j
+    /// speed[j] · lever_j`, never above [`Checker::arm_speed`].
+    pub fn motion_speed(&self, speed: &[f64; NJ]) -> f64 {
+        self.poser.max_point_speed(speed).min(self.arm_speed)
+    }
+
+    /// [`Checker::check`] of a motion no point of which moves faster than `v_arm` m/s (`None`:
+    /// a rest). The samples are spaced by `δ / (v_arm + V_obs)` (the module docs), and the
+    /// broad phase holds the arm in its start pose's bounding sphere grown by `v_arm` times
+    /// the stretch, when that is smaller than the sphere of all its reach.
+    pub fn check_motion(
+        &mut self,
+        world: &WorldInTime,
+        t0: f64,
+        t1: f64,
+        t_end: f64,
+        v_arm: Option<f64>,
         mut at: impl FnMut(f64) -> [f64; NJ],
     ) -> Check {
         let mut out = Check::pass(self.cap);
@@ -200,30 +228,33 @@ impl Checker {
         if t1c < t0 {
             return out;
         }
+        let moving = v_arm.is_some();
+        let v_arm = v_arm.map_or(0.0, |v| v.clamp(0.0, self.arm_speed));
         let half = 0.5 * self.delta;
         // Broad phase: the tracks that can come within the cap of the arm in [t0, t1c].
-        let (centre, radius) = if moving {
-            self.reach
-        } else {
-            self.poser.pose(&at(t0), &mut self.caps);
-            bounding_sphere(&self.caps)
-        };
-        let (mask, v_obs) = world.near(t0, t1c, &centre, radius + self.cap, half);
-        let v = v_obs + if moving { self.arm_speed } else { 0.0 };
-        let dt_min = if v <= 1e-9 { 0.5 } else { (self.delta / v).min(0.5) };
+        self.poser.pose(&at(t0), &mut self.caps);
+        let (mut centre, mut radius) = bounding_sphere(&self.caps);
+        if moving {
+            radius += v_arm * (t1c - t0);
+            if radius >= self.reach.1 {
+                (centre, radius) = self.reach;
+            }
+        }
+        let (mask, _) = world.near(t0, t1c, &centre, radius + self.cap, half);
+        // Per track kept: how fast its gap to the arm can close over the stretch.
+        let mut closing = [0.0f64; MAX_DEBRIS];
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            closing[i] = v_arm + world.speed_within(i, t0, t1c);
+            m &= m - 1;
+        }
         let mut t = t0;
         loop {
             let floor = self.floor_at(t);
-            let c = if moving || out.samples == 0 {
-                let q = at(t);
-                self.clearance_masked(world, &q, t, half, floor, mask)
-            } else {
-                // At rest the arm's pose is already computed.
-                self.configs_checked += 1;
-                let near = Near { arm: &self.caps, centre: &centre, radius, cap: self.cap };
-                world.obstacles_within(t, half, mask, Some(near), &mut self.obs);
-                clearance(&self.caps, &self.obs, floor, self.cap)
-            };
+            // At rest the arm's pose is computed once.
+            let q = (moving || out.samples == 0).then(|| at(t));
+            let c = self.sample(world, q.as_ref(), t, half, floor, mask);
             out.samples += 1;
             out.min_clearance = out.min_clearance.min(c);
             if c < floor {
@@ -234,23 +265,69 @@ impl Checker {
             if t >= t1c {
                 break;
             }
-            // Conservative advancement: with clearance c (beyond the δ/2 inflation) nothing can
-            // close the gap faster than v, so the next δ/2-margin sample may wait c / v longer.
-            // Under a relief the gap is to its floor until it ends, then to 0: either the gap to
-            // the floor runs out first, or the samples may skip to its end (or as far as c
-            // allows past it).
-            let step = if v > 1e-9 {
-                let until = self.relief.map_or(t, |r| r.1) - t;
+            // Conservative advancement, per track: with clearance c (beyond the δ/2 inflation)
+            // nothing closes that track's gap faster than its closing speed v, so the next
+            // δ/2-margin sample may wait c / v + δ / v. Under a relief the gap is to its floor
+            // until it ends, then to 0: either the gap to the floor runs out first, or the
+            // samples may skip to its end (or as far as c allows past it). The nearest track
+            // in time sets the step; a track far away no longer does, however fast.
+            let until = self.relief.map_or(t, |r| r.1) - t;
+            let mut step = MAX_STEP_S;
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let v = closing[i];
+                if v <= 1e-9 {
+                    continue;
+                }
+                let c = self.gaps.gap[i];
                 let free = if (c - floor) / v < until { (c - floor) / v } else { until.max(c / v) };
-                dt_min.max(free + dt_min)
-            } else {
-                dt_min
-            };
+                step = step.min(free.max(0.0) + self.delta / v);
+            }
             t = (t + step).min(t1c);
         }
         out
     }
+
+    /// One sample of [`Checker::check_motion`] at time `t`: the arm at `q` (posed anew; `None`:
+    /// as posed last), its clearance from the tracks in `mask` inflated by `extra` more (below
+    /// `floor`: returned as soon as found), and in `self.gaps` each track's gap to it.
+    fn sample(
+        &mut self,
+        world: &WorldInTime,
+        q: Option<&[f64; NJ]>,
+        t: f64,
+        extra: f64,
+        floor: f64,
+        mask: u64,
+    ) -> f64 {
+        self.configs_checked += 1;
+        if let Some(q) = q {
+            if !self.in_limits(q) {
+                return -1.0;
+            }
+            self.poser.pose(q, &mut self.caps);
+        }
+        let (centre, radius) = bounding_sphere(&self.caps);
+        let near = Near { arm: &self.caps, centre: &centre, radius, cap: self.cap };
+        world.obstacles_gapped(t, extra, mask, Some(near), &mut self.obs, Some(&mut self.gaps));
+        let mut c = self.cap;
+        for (k, o) in self.obs.iter().enumerate() {
+            let ck = clearance(&self.caps, std::slice::from_ref(o), floor, self.cap);
+            let i = self.gaps.track[k] as usize;
+            self.gaps.gap[i] = self.gaps.gap[i].max(ck);
+            c = c.min(ck);
+            if ck < floor {
+                break;
+            }
+        }
+        c
+    }
 }
+
+/// The longest step between two samples of a check, s.
+const MAX_STEP_S: f64 = 0.5;
 
 /// A sphere holding every capsule (centre: the mean of their centres).
 fn bounding_sphere(caps: &[PosedCapsule]) -> ([f64; 3], f64) {
@@ -270,3 +347,4 @@ fn bounding_sphere(caps: &[PosedCapsule]) -> ([f64; 3], f64) {
         .fold(0.0, f64::max);
     (c, r)
 }
+

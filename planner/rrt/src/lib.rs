@@ -23,7 +23,7 @@ pub mod world;
 
 pub use check::{Check, Checker};
 pub use replan::{
-    check_message, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, Summary, TrackerView,
+    check_message, message_speed_peaks, CycleClock, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, Summary, TrackerView,
 };
 pub use rrt::{Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_DT, DODGE_GAIN_M};
-pub use world::{After, TimedPose, WorldError, WorldInTime};
+pub use world::{After, Gaps, TimedPose, WorldError, WorldInTime};

@@ -84,6 +84,30 @@ impl Default for ReplanConfig {
     }
 }
 
+/// The replanning cadence on the plant clock: a cycle is due at the first stamp at or past
+/// the next multiple of the period.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CycleClock {
+    period_ns: u64,
+    /// The plant time at or after which the next cycle is due, ns (0 before the first).
+    pub next_ns: u64,
+}
+
+impl CycleClock {
+    pub fn new(cycle_s: f64) -> Self {
+        CycleClock { period_ns: ((cycle_s * 1e9).round() as u64).max(1), next_ns: 0 }
+    }
+
+    /// True (and the next cycle scheduled) when `stamp_ns` has reached the next cycle.
+    pub fn due(&mut self, stamp_ns: u64) -> bool {
+        if stamp_ns < self.next_ns {
+            return false;
+        }
+        self.next_ns = stamp_ns - stamp_ns % self.period_ns + self.period_ns;
+        true
+    }
+}
+
 /// What the tracker is doing (from its commands, or the in-process tracker).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackerView {
@@ -177,7 +201,7 @@ pub struct Replanner {
     /// did not reach it.
     backoff: u32,
     misses: u32,
-    next_cycle_ns: u64,
+    clock: CycleClock,
     /// Print one line per cycle to stderr (`DKRRT_PLAN_DEBUG` set at construction).
     pub debug: bool,
 }
@@ -211,7 +235,7 @@ impl Replanner {
             debug: std::env::var_os("DKRRT_PLAN_DEBUG").is_some(),
             backoff: 0,
             misses: 0,
-            next_cycle_ns: 0,
+            clock: CycleClock::new(cfg.cycle_s),
             cfg,
         }
     }
@@ -232,17 +256,17 @@ impl Replanner {
     /// The cycle cadence on the plant clock, shared by both shells: true (and the next cycle
     /// scheduled) when `stamp_ns` has reached the next multiple of the cycle period.
     pub fn cycle_due(&mut self, stamp_ns: u64) -> bool {
-        if stamp_ns < self.next_cycle_ns {
-            return false;
-        }
-        let c = ((self.cfg.cycle_s * 1e9).round() as u64).max(1);
-        self.next_cycle_ns = stamp_ns - stamp_ns % c + c;
-        true
+        self.clock.due(stamp_ns)
     }
 
     /// The plant time at or after which the next cycle is due, ns (0 before the first).
     pub fn next_cycle_ns(&self) -> u64 {
-        self.next_cycle_ns
+        self.clock.next_ns
+    }
+
+    /// The cycle cadence (a copy follows the same cycles when given the same stamps).
+    pub fn cycle_clock(&self) -> CycleClock {
+        self.clock
     }
 
     /// Numbers this planner's trajectories from `first` on (a restarted planner process starts
@@ -298,6 +322,7 @@ impl Replanner {
         out: &mut Trajectory,
     ) -> Decision {
         let c_start = clock();
+        let cc0 = self.planner.checker.configs_checked;
         self.stats.cycles += 1;
         if let Some(f) = forecast {
             self.world.load_forecast(f);
@@ -338,7 +363,8 @@ impl Replanner {
         self.status = st;
         if self.debug {
             eprintln!(
-                "plan t={t_now:.2} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} edges={} configs={} first={:?} clear={:.3} {:.1} ms reach={:?} ends={:.2}",
+                "plan t={t_now:.2} cycle_configs={} tracks={} mode={:?} cur={} publish={publish} fallback={} it={} nodes={} edges={} configs={} first={:?} clear={:.3} {:.1} ms reach={:?} ends={:.2}",
+                self.planner.checker.configs_checked - cc0,
                 self.world.len(),
                 tracker.mode,
                 self.current.traj_id,
@@ -497,7 +523,10 @@ impl Replanner {
             KinState::rest(*q_meas)
         };
         let id = self.next_id;
-        let plan = self.search(&start, t_c, clock, c_start, !improving, st, out);
+        // Improving: only a plan arriving clearly earlier than the kept one is wanted.
+        let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
+        let before = if improving { cur_arrival - self.cfg.improve_gain_s } else { f64::INFINITY };
+        let plan = self.search(&start, t_c, before, clock, c_start, !improving, st, out);
         if let Some(p) = plan {
             // The message the tracker will follow, checked once more before it goes out.
             let look = self.planner.cfg.lookahead_s;
@@ -505,9 +534,7 @@ impl Replanner {
             let better = !cur_clean || !reaches_goal || goal_changed || p.reach == Reach::Goal;
             // Improving a kept clean plan: only a clean plan to the goal that arrives clearly
             // earlier replaces it.
-            let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
-            let gains =
-                !improving || (p.reach == Reach::Goal && p.arrival < cur_arrival - self.cfg.improve_gain_s);
+            let gains = !improving || (p.reach == Reach::Goal && p.arrival < before);
             if ok && better && gains && !(cur_valid && p.reach == Reach::Escape) {
                 self.accept(out, p.reach);
                 st.fallback = if p.reach == Reach::Escape {
@@ -596,7 +623,7 @@ impl Replanner {
             }
         }
         if !(known && self.backoff > 0) {
-            let plan = self.search(&start, t_b, clock, c_start, true, st, out);
+            let plan = self.search(&start, t_b, f64::INFINITY, clock, c_start, true, st, out);
             if let Some(p) = plan {
                 let (ok, clear) = check_message(&mut self.planner, &self.world, out, t_b, t_b + look);
                 let cur_arrival = self.current.start_ns as f64 * 1e-9 + self.current.duration_s;
@@ -629,11 +656,14 @@ impl Replanner {
 
     /// Runs the planner from `start` at plant time `t0` into `out`, with the cycle's budget
     /// and deadline, and books it (`count_miss`: a plan short of the goal grows the backoff).
+    /// `before` finite: only a plan to the goal arriving before it is sought
+    /// ([`Planner::plan_to_beat`]).
     #[allow(clippy::too_many_arguments)]
     fn search(
         &mut self,
         start: &KinState<NJ>,
         t0: f64,
+        before: f64,
         clock: &mut dyn FnMut() -> u64,
         c_start: u64,
         count_miss: bool,
@@ -643,14 +673,9 @@ impl Replanner {
         let req = Request { start: *start, t0, goal: *goal_for(self.goal.as_ref()) };
         let deadline = self.deadline_ns(c_start);
         self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
-        let plan = self.planner.plan(
-            &req,
-            &self.world,
-            self.cfg.iterations,
-            || clock() < deadline,
-            self.next_id,
-            out,
-        );
+        let keep_going = || clock() < deadline;
+        let plan =
+            self.planner.plan_to_beat(&req, &self.world, before, self.cfg.iterations, keep_going, self.next_id, out);
         self.last_plan = self.planner.stats;
         self.stats.planner_iterations += self.planner.stats.iterations as u64;
         st.iterations = self.planner.stats.iterations;
@@ -797,7 +822,59 @@ pub fn check_message_at(
     // A message that starts inside the inflated obstacles must leave them (the relief).
     let s0 = tr.sample(t0 - start);
     planner.relieve(world, &KinState { p: s0.p, v: s0.v, a: s0.a }, t0);
-    let c = planner.checker.check(world, t0, t1, t1, true, |t| tr.sample(t - start).p);
+    // The motion in pieces of at most `MESSAGE_PIECE_S`, each checked with the speed its
+    // joints actually reach in it, then the rest at its end (the arm still).
+    let end = start + tr.duration_s.max(0.0);
+    let mut c = crate::Check { ok: true, min_clearance: planner.checker.cap, t_fail: f64::NAN, samples: 0 };
+    let mut a = t0;
+    while c.ok && a < t1.min(end) {
+        let b = (a + MESSAGE_PIECE_S).min(t1.min(end));
+        let v = planner.checker.motion_speed(&message_speed_peaks(tr, a - start, b - start));
+        c = merge(c, planner.checker.check_motion(world, a, b, t1, Some(v), |t| tr.sample(t - start).p));
+        a = b;
+    }
+    if c.ok && t1 >= a {
+        let q = tr.sample(a - start).p;
+        c = merge(c, planner.checker.check_motion(world, a, t1, t1, None, |_| q));
+    }
     planner.checker.end_relief();
     c
+}
+
+/// A message's motion is checked in pieces this long at most, s.
+const MESSAGE_PIECE_S: f64 = 0.5;
+
+/// Two checks of consecutive stretches as one.
+fn merge(a: crate::Check, b: crate::Check) -> crate::Check {
+    crate::Check {
+        ok: a.ok && b.ok,
+        min_clearance: a.min_clearance.min(b.min_clearance),
+        t_fail: if a.ok { b.t_fail } else { a.t_fail },
+        samples: a.samples + b.samples,
+    }
+}
+
+/// Each joint's largest speed over trajectory times `[a, b]` of a message (after its end the
+/// arm holds its last position).
+pub fn message_speed_peaks(tr: &Trajectory, a: f64, b: f64) -> [f64; NJ] {
+    let (a, b) = (a.max(0.0), b.min(tr.duration_s));
+    let mut out = [0.0; NJ];
+    if !(b > a) {
+        return out;
+    }
+    for (j, m) in out.iter_mut().enumerate() {
+        let n = (tr.n_seg[j] as usize).clamp(1, dkrrt_msg::MAX_SEGMENTS);
+        let segs = &tr.seg[j][..n];
+        for (k, sg) in segs.iter().enumerate() {
+            let t_next = segs.get(k + 1).map_or(tr.duration_s, |s| s.t0);
+            let (lo, hi) = (sg.t0.max(a), t_next.min(b));
+            if hi < lo {
+                continue;
+            }
+            let d = lo - sg.t0;
+            let (v, acc) = (sg.v + d * (sg.a + d * sg.j / 2.0), sg.a + d * sg.j);
+            *m = m.max(dkrrt_otg::speed_peak(v, acc, sg.j, hi - lo));
+        }
+    }
+    out
 }

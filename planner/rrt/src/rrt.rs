@@ -147,6 +147,16 @@ pub const DODGE_DT: f64 = 0.05;
 const DODGE_RANDOM: usize = 20;
 pub const DODGE_GAIN_M: f64 = 0.01;
 
+/// What checking an edge found.
+enum Edge {
+    /// Clear: (arrival, min clearance).
+    Clear(f64, f64),
+    /// It meets an obstacle, or cannot be timed.
+    Blocked,
+    /// It arrives no earlier than the best plan so far: not checked.
+    Late,
+}
+
 /// The planner (tree, checker, random stream: all preallocated).
 pub struct Planner {
     pub cfg: PlannerConfig,
@@ -160,6 +170,8 @@ pub struct Planner {
     t0: f64,
     rng: SmallRng,
     best_goal: Option<(u32, f64, f64, f64)>, // (parent node, wait, arrival, min clearance)
+    /// Only arrivals before this are wanted ([`Planner::plan_to_beat`]; else infinite).
+    before: f64,
     path: Vec<u32>,
     pub stats: PlanStats,
     /// Wall time from the start of the last `plan` call to its first solution, s.
@@ -182,6 +194,7 @@ impl Planner {
             t0: 0.0,
             rng: SmallRng::seed_from_u64(cfg.seed),
             best_goal: None,
+            before: f64::INFINITY,
             path: Vec::with_capacity(cfg.max_nodes.max(2)),
             stats: PlanStats::default(),
             first_solution_s: None,
@@ -200,6 +213,20 @@ impl Planner {
         dkrrt_otg::Trajectory::calculate(from, &KinState::rest(*q), &self.limits, &opts).ok()
     }
 
+    /// A lower bound on the duration of any rest-to-rest motion from `a` to `b` within the
+    /// limits: for each joint moving `d`, `d / v_max`, `2 √(d / a_max)` (bang-bang
+    /// acceleration) and `∛(32 d / j_max)` (bang-bang jerk) each bound its time-optimal
+    /// profile from below.
+    fn least_time(&self, a: &[f64; NJ], b: &[f64; NJ]) -> f64 {
+        let l = &self.limits;
+        (0..NJ)
+            .map(|j| {
+                let d = (b[j] - a[j]).abs();
+                (d / l.v_max[j]).max(2.0 * (d / l.a_max[j]).sqrt()).max((32.0 * d / l.j_max[j]).cbrt())
+            })
+            .fold(0.0, f64::max)
+    }
+
     fn node_state(&self, i: u32) -> KinState<NJ> {
         if i == ROOT {
             self.root
@@ -212,25 +239,43 @@ impl Planner {
         self.t0 + self.cfg.lookahead_s
     }
 
-    /// Checks "wait `w` at node `from`, then move to rest at `q`"; returns (arrival, min clearance).
-    fn edge(&mut self, world: &WorldInTime, from: u32, w: f64, q: &[f64; NJ]) -> Option<(f64, f64)> {
+    /// The arrival a new solution must beat: the best one's, or the bound of
+    /// [`Planner::plan_to_beat`].
+    fn arrival_bound(&self) -> f64 {
+        self.best_goal.map_or(self.before, |b| b.2.min(self.before))
+    }
+
+    /// Checks "wait `w` at node `from`, then move to rest at `q`"; returns (arrival, min
+    /// clearance). An edge arriving no earlier than [`Planner::arrival_bound`] could serve no
+    /// better plan: it is [`Edge::Late`], and left unchecked.
+    fn edge(&mut self, world: &WorldInTime, from: u32, w: f64, q: &[f64; NJ]) -> Edge {
         let w = if from == ROOT && self.root_moving { 0.0 } else { w };
         let n = self.nodes[from as usize];
+        // From rest the motion takes at least its slowest joint's time-optimal bound: a late
+        // edge is known before its motion is even computed.
+        let bound = self.arrival_bound();
+        if bound.is_finite() && !(from == ROOT && self.root_moving) && n.t + w + self.least_time(&n.q, q) >= bound {
+            return Edge::Late;
+        }
         let st = self.node_state(from);
-        let tr = self.motion(&st, q)?;
+        let Some(tr) = self.motion(&st, q) else { return Edge::Blocked };
+        if n.t + w + tr.duration() >= self.arrival_bound() {
+            return Edge::Late;
+        }
         self.stats.edges_checked += 1;
         let t_end = self.t_end();
         let mut clear = n.min_clear;
         if w > 0.0 {
             let c = self.checker.check(world, n.t, n.t + w, t_end, false, |_| n.q);
             if !c.ok {
-                return None;
+                return Edge::Blocked;
             }
             clear = clear.min(c.min_clearance);
         }
         let ts = n.t + w;
         let d = tr.duration();
-        let c = self.checker.check(world, ts, ts + d, t_end, true, |t| tr.at(t - ts).p);
+        let v_arm = self.checker.motion_speed(&tr.speed_peaks());
+        let c = self.checker.check_motion(world, ts, ts + d, t_end, Some(v_arm), |t| tr.at(t - ts).p);
         if !c.ok {
             if self.debug && from == ROOT {
                 eprintln!(
@@ -238,9 +283,9 @@ impl Planner {
                     c.t_fail
                 );
             }
-            return None;
+            return Edge::Blocked;
         }
-        Some((ts + d, clear.min(c.min_clearance)))
+        Edge::Clear(ts + d, clear.min(c.min_clearance))
     }
 
     /// The rest at `q` from `t` until the look-ahead's end (nothing to check after it).
@@ -256,22 +301,22 @@ impl Planner {
                 break;
             }
             let t_leave = self.nodes[from as usize].t + w;
-            if self.best_goal.is_some_and(|b| t_leave >= b.2) {
+            if t_leave >= self.arrival_bound() {
                 break; // cannot beat the best arrival
             }
-            if let Some((arr, clear)) = self.edge(world, from, w, goal) {
-                if self.best_goal.is_some_and(|b| arr >= b.2) {
-                    break;
-                }
-                let r = self.rest_ok(world, goal, arr);
-                if self.debug && from == ROOT {
-                    eprintln!("    goal rest from {arr:.2}: ok {} at {:.2}", r.ok, r.t_fail);
-                }
-                if r.ok {
-                    self.best_goal = Some((from, w, arr, clear.min(r.min_clearance)));
-                    found = true;
-                    break;
-                }
+            let (arr, clear) = match self.edge(world, from, w, goal) {
+                Edge::Clear(arr, clear) => (arr, clear),
+                Edge::Late => break,
+                Edge::Blocked => continue,
+            };
+            let r = self.rest_ok(world, goal, arr);
+            if self.debug && from == ROOT {
+                eprintln!("    goal rest from {arr:.2}: ok {} at {:.2}", r.ok, r.t_fail);
+            }
+            if r.ok {
+                self.best_goal = Some((from, w, arr, clear.min(r.min_clearance)));
+                found = true;
+                break;
             }
         }
         found
@@ -318,6 +363,26 @@ impl Planner {
         traj_id: u64,
         out: &mut Trajectory,
     ) -> Option<Plan> {
+        self.plan_to_beat(req, world, f64::INFINITY, budget, keep_going, traj_id, out)
+    }
+
+    /// [`Planner::plan`] for a plan to the goal arriving before `before` only (plant time, s;
+    /// infinite: [`Planner::plan`]): the anytime improvement of a plan already held. Edges that
+    /// arrive later are never checked, no safe haven is sought, and the search stops
+    /// `improve_iters` iterations after its first solution, or after `improve_iters` without
+    /// one (at most `budget`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn plan_to_beat(
+        &mut self,
+        req: &Request,
+        world: &WorldInTime,
+        before: f64,
+        budget: u32,
+        keep_going: impl FnMut() -> bool,
+        traj_id: u64,
+        out: &mut Trajectory,
+    ) -> Option<Plan> {
+        self.before = before;
         self.stats = PlanStats::default();
         let wall = std::time::Instant::now();
         self.first_solution_s = None;
@@ -328,6 +393,7 @@ impl Planner {
         let plan = self.grow(req, world, budget, keep_going, traj_id, out, (wall, c0));
         self.checker.end_relief();
         self.stats.configs_checked = self.checker.configs_checked - c0;
+        self.before = f64::INFINITY;
         plan
     }
 
@@ -380,7 +446,7 @@ impl Planner {
         // A moving start can first brake to rest: the rest-at-start node (waits grow from it).
         if self.root_moving {
             if let Some(tr) = self.brake_point(&req.start) {
-                if let Some((t, clear)) = self.edge(world, ROOT, 0.0, &tr) {
+                if let Edge::Clear(t, clear) = self.edge(world, ROOT, 0.0, &tr) {
                     self.nodes.push(Node { q: tr, t, parent: ROOT, wait: 0.0, min_clear: clear });
                 }
             }
@@ -399,6 +465,8 @@ impl Planner {
                 if it >= f + self.cfg.improve_iters {
                     break;
                 }
+            } else if self.before.is_finite() && it >= self.cfg.improve_iters {
+                break;
             }
             it += 1;
             if self.nodes.len() >= self.nodes.capacity() {
@@ -415,10 +483,8 @@ impl Planner {
             } else {
                 0.0
             };
-            let Some((t, clear)) = self.edge(world, near, w, &q_new) else { continue };
-            if self.best_goal.is_some_and(|b| t >= b.2) {
-                continue; // arrives after the best solution: useless
-            }
+            // An edge arriving after the best solution is useless: not even checked.
+            let Edge::Clear(t, clear) = self.edge(world, near, w, &q_new) else { continue };
             let idx = self.nodes.len() as u32;
             self.nodes.push(Node { q: q_new, t, parent: near, wait: w, min_clear: clear });
             if self.try_goal(world, idx, &goal, &WAIT_LADDER[..4]) && first.is_none() {
@@ -433,6 +499,8 @@ impl Planner {
             let (parent, wait, arrival, clear) = self.best_goal.unwrap_or(best);
             self.write(parent, Some((wait, &goal)), traj_id, out).ok()?;
             Some(Plan { reach: Reach::Goal, arrival, min_clearance: clear, n_waypoints: self.path.len() })
+        } else if self.before.is_finite() {
+            None
         } else {
             self.escape(world, traj_id, out)
         };
@@ -623,5 +691,39 @@ impl Planner {
         }
         b.finish();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_least_time_never_exceeds_a_motions_duration() {
+        let limits = Limits {
+            v_max: [0.1, 0.1, 0.1, 0.18, 0.18, 0.18],
+            a_max: [0.2, 0.2, 0.2, 0.4, 0.4, 0.4],
+            j_max: [1.0, 1.0, 1.0, 2.0, 2.0, 2.0],
+        };
+        let p = Planner::new(ArmModel::default_arm(), limits, PlannerConfig::default());
+        let mut rng = SmallRng::seed_from_u64(5);
+        let mut tight = 0;
+        for k in 0..2000 {
+            // Short and long moves, one joint or all.
+            let scale = [1e-4, 0.01, 0.3, 2.0][k % 4];
+            let a: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let b: [f64; NJ] = std::array::from_fn(|j| {
+                if k % 3 == 0 && j != 2 {
+                    a[j]
+                } else {
+                    a[j] + scale * rng.random_range(-1.0..1.0)
+                }
+            });
+            let d = p.motion(&KinState::rest(a), &b).expect("a motion").duration();
+            let lb = p.least_time(&a, &b);
+            assert!(lb <= d + 1e-9, "{lb} > {d} for {a:?} -> {b:?}");
+            tight += (lb > 0.7 * d) as usize;
+        }
+        assert!(tight > 1000, "the bound is rarely close: {tight} of 2000");
     }
 }

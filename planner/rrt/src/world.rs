@@ -59,6 +59,8 @@ struct Track {
     arcs: Vec<SlerpArc>,
     /// Max surface speed (incl. σ growth) over the poses and the extrapolation, m/s.
     speed: f64,
+    /// The same per interval between consecutive poses (`speeds[k]`: poses `k`, `k + 1`), m/s.
+    speeds: Vec<f64>,
     /// Growth rate of the position bound (and of σ) after the last pose, m/s.
     sigma_rate: f64,
     /// The poses' spacing when uniform (forecasts: their step), s; 0: not uniform.
@@ -100,6 +102,7 @@ impl WorldInTime {
                 poses: Vec::with_capacity(FORECAST_STEPS + 1),
                 arcs: Vec::with_capacity(FORECAST_STEPS + 1),
                 speed: 0.0,
+                speeds: Vec::with_capacity(FORECAST_STEPS + 1),
                 sigma_rate: 0.0,
                 grid_dt: 0.0,
             })
@@ -205,26 +208,35 @@ impl WorldInTime {
 
     /// The tracks whose inflated shape (inflated by `extra` more) can come within `reach` of
     /// the sphere (`centre`, `radius`) at some time in `[t0, t1]`, as a bit mask (bit `i`:
-    /// track `i`), and the largest [`Track`] speed among them. Conservative: at the window's
-    /// middle a track's inflated shape lies within its bounding radius + σ + margin + extra of
-    /// its centre, and centre and σ together move at most its speed (the bound
-    /// [`WorldInTime::max_speed`] is made of), so over the half window it stays inside that
-    /// sphere grown by speed × half window.
+    /// track `i`), and the largest speed among them over `[t0, t1]`
+    /// ([`WorldInTime::speed_within`]). Conservative: at the window's middle a track's
+    /// inflated shape lies within its bounding radius + σ + margin + extra of its centre, and
+    /// centre and σ together move at most that speed over the window, so over the half window
+    /// it stays inside that sphere grown by speed × half window.
     pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
         const _: () = assert!(MAX_DEBRIS <= 64);
         let (tm, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0).max(0.0));
         let (mut mask, mut v) = (0u64, 0.0f64);
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             let (p, _, sigma, sigma_pos, _) = pose_at(tr, tm);
-            let r = tr.radius + sigma.max(sigma_pos) + self.margin + extra + tr.speed * half;
+            let speed = speed_within(tr, t0, t1);
+            let r = tr.radius + sigma.max(sigma_pos) + self.margin + extra + speed * half;
             let d =
                 ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2)).sqrt();
             if !(d - r - radius > 0.0) {
                 mask |= 1 << i;
-                v = v.max(tr.speed);
+                v = v.max(speed);
             }
         }
         (mask, v)
+    }
+
+    /// The largest surface speed (incl. σ growth) of track `i` over `[t0, t1]`, m/s: the
+    /// largest of the intervals between its poses that overlap the window (before the first
+    /// pose: the first interval's; past the last: the last interval's plus the extrapolated
+    /// σ growth). At most [`WorldInTime::max_speed`].
+    pub fn speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
+        speed_within(&self.tracks[i], t0, t1)
     }
 
     /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
@@ -244,6 +256,23 @@ impl WorldInTime {
         near: Option<Near>,
         out: &mut Vec<Obstacle>,
     ) {
+        self.obstacles_gapped(t, extra, mask, near, out, None);
+    }
+
+    /// [`WorldInTime::obstacles_within`], and with `gaps`: for every track `i` of `mask`, a
+    /// lower bound on the clearance between its inflated shape and the arm (`near.arm`) in
+    /// `gaps.gap[i]` (from the bounding spheres: exact enough for the tracks left out, which
+    /// lie `near.cap` or more away), and for every obstacle written its track in
+    /// `gaps.track`. `gaps` needs `near`.
+    pub fn obstacles_gapped(
+        &self,
+        t: f64,
+        extra: f64,
+        mask: u64,
+        near: Option<Near>,
+        out: &mut Vec<Obstacle>,
+        mut gaps: Option<&mut Gaps>,
+    ) {
         out.clear();
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             if mask >> i & 1 == 0 {
@@ -254,7 +283,11 @@ impl WorldInTime {
             if let Some(nr) = &near {
                 // The shape (or the bounding sphere), inflated, lies within `r` of `s.p`.
                 let r = tr.reach + s.sigma.max(s.sigma_pos) + base;
-                if dist3(&s.p, nr.centre) - r >= nr.radius + nr.cap {
+                let g_arm = dist3(&s.p, nr.centre) - r - nr.radius;
+                if g_arm >= nr.cap {
+                    if let Some(g) = gaps.as_deref_mut() {
+                        g.gap[i] = g_arm;
+                    }
                     continue;
                 }
                 // Per capsule: [`dkrrt_collision::clearance`] measures no pair whose bounding
@@ -262,7 +295,13 @@ impl WorldInTime {
                 // (before its attitude is interpolated). `r` bounds the obstacle's own bounding
                 // sphere and inflation from `s.p`; the slack covers rounding, so what is left
                 // out is exactly what `clearance` would have skipped.
-                if !nr.arm.iter().any(|c| dist3(&s.p, &c.centre) - c.bound - r < nr.cap + 1e-9) {
+                let g_caps =
+                    nr.arm.iter().map(|c| dist3(&s.p, &c.centre) - c.bound - r).fold(f64::INFINITY, f64::min);
+                if let Some(g) = gaps.as_deref_mut() {
+                    g.gap[i] = g_arm.max(g_caps);
+                    g.track[out.len().min(MAX_DEBRIS - 1)] = i as u8;
+                }
+                if !(g_caps < nr.cap + 1e-9) {
                     continue;
                 }
             }
@@ -316,6 +355,7 @@ fn finish(t: &mut Track) {
         }
     }
     let mut speed: f64 = 0.0;
+    t.speeds.clear();
     for w in t.poses.windows(2) {
         let dt = w[1].t - w[0].t;
         let dp = ((w[1].p[0] - w[0].p[0]).powi(2)
@@ -324,6 +364,7 @@ fn finish(t: &mut Track) {
         .sqrt();
         let da = quat_angle(&w[0].q, &w[1].q);
         let ds = (w[1].sigma - w[0].sigma).abs();
+        t.speeds.push((dp + da * r + ds) / dt);
         speed = speed.max((dp + da * r + ds) / dt);
     }
     t.sigma_rate = 0.0;
@@ -349,6 +390,22 @@ const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
 
 fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Per track, a lower bound on its clearance from the arm at one time, and the track of each
+/// obstacle written ([`WorldInTime::obstacles_gapped`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Gaps {
+    /// `gap[i]`: every point of track `i`'s inflated shape is at least this far from the arm, m.
+    pub gap: [f64; MAX_DEBRIS],
+    /// `track[k]`: the track of the `k`-th obstacle written.
+    pub track: [u8; MAX_DEBRIS],
+}
+
+impl Default for Gaps {
+    fn default() -> Self {
+        Gaps { gap: [f64::INFINITY; MAX_DEBRIS], track: [0; MAX_DEBRIS] }
+    }
 }
 
 /// Where the checker looks: the arm's posed capsules, their bounding sphere (`centre`,
@@ -386,6 +443,42 @@ fn pose_at(tr: &Track, t: f64) -> ([f64; 3], [f64; 4], f64, f64, bool) {
     (s.p, s.q(), s.sigma, s.sigma_pos, s.sphere)
 }
 
+/// The interval `[k, k + 1]` of the poses (`n ≥ 2`) holding `t`, clamped to the first and
+/// the last: the last pose at or before `t`.
+fn interval_of(tr: &Track, t: f64) -> usize {
+    let ps = &tr.poses;
+    let n = ps.len();
+    if t <= ps[0].t {
+        0
+    } else if tr.grid_dt > 0.0 {
+        // Uniform steps: the interval straight from the time, then made exact (the last pose
+        // at or before `t`, as the search below finds it).
+        let mut k = (((t - ps[0].t) / tr.grid_dt) as usize).min(n - 2);
+        while k + 2 < n && ps[k + 1].t <= t {
+            k += 1;
+        }
+        while k > 0 && ps[k].t > t {
+            k -= 1;
+        }
+        k
+    } else {
+        ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2)
+    }
+}
+
+fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
+    let n = tr.poses.len();
+    if n < 2 {
+        return tr.speed;
+    }
+    let (ka, kb) = (interval_of(tr, t0), interval_of(tr, t1.max(t0)));
+    let mut v = tr.speeds[ka..=kb].iter().fold(0.0f64, |m, &x| m.max(x));
+    if tr.after == After::Extrapolate && t1 > tr.poses[n - 1].t {
+        v = v.max(tr.speeds[n - 2] + tr.sigma_rate);
+    }
+    v
+}
+
 fn state_at(tr: &Track, t: f64) -> State {
     let ps = &tr.poses;
     let n = ps.len();
@@ -410,23 +503,7 @@ fn state_at(tr: &Track, t: f64) -> State {
             }
         };
     }
-    // Interval [k, k+1] holding t (clamped to the first / last).
-    let k = if t <= ps[0].t {
-        0
-    } else if tr.grid_dt > 0.0 {
-        // Uniform steps: the interval straight from the time, then made exact (the last pose
-        // at or before `t`, as the search below finds it).
-        let mut k = (((t - ps[0].t) / tr.grid_dt) as usize).min(n - 2);
-        while k + 2 < n && ps[k + 1].t <= t {
-            k += 1;
-        }
-        while k > 0 && ps[k].t > t {
-            k -= 1;
-        }
-        k
-    } else {
-        ps.partition_point(|p| p.t <= t).saturating_sub(1).min(n - 2)
-    };
+    let k = interval_of(tr, t);
     let (a, b) = (ps[k], ps[k + 1]);
     let f = (t - a.t) / (b.t - a.t);
     let p = [a.p[0] + f * (b.p[0] - a.p[0]), a.p[1] + f * (b.p[1] - a.p[1]), a.p[2] + f * (b.p[2] - a.p[2])];

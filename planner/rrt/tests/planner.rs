@@ -129,21 +129,28 @@ fn a_crossing_obstacle_is_avoided_and_the_plan_is_clear_at_every_millisecond() {
     assert!((0..NJ).all(|j| (end[j] - GOAL[j]).abs() < 1e-9));
 }
 
-#[test]
-fn a_thin_fast_rod_does_not_slip_between_samples() {
-    // A 2 cm rod (capsule along z) flies along x at 8 m/s through link 4 of the arm at rest.
+/// The arm at rest at `START`, link 4's capsule, and a thin rod's start and velocity such that
+/// it flies at 8 m/s across that link (perpendicular to it and to its own axis, z) through its
+/// centre at `t_cross`.
+fn rod_across_link4(t_cross: f64) -> (dkrrt_collision::PosedCapsule, [f64; 3], [f64; 3]) {
     let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
     let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
     poser.pose(&START, &mut caps);
     let c = caps[4].centre;
-    // Across the link, perpendicular to it and to the rod's own axis (z).
     let (a, b) = (caps[4].a, caps[4].b);
     let ax = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let dir = [ax[1], -ax[0], 0.0];
     let n = (dir[0] * dir[0] + dir[1] * dir[1]).sqrt();
     let v = [8.0 * dir[0] / n, 8.0 * dir[1] / n, 0.0];
+    (caps[4], [c[0] - v[0] * t_cross, c[1] - v[1] * t_cross, c[2]], v)
+}
+
+#[test]
+fn a_thin_fast_rod_does_not_slip_between_samples() {
+    // A 2 cm rod (capsule along z) flies along x at 8 m/s through link 4 of the arm at rest.
     let t_cross = 1.05;
-    let p0 = [c[0] - v[0] * t_cross, c[1] - v[1] * t_cross, c[2]];
+    let (link, p0, v) = rod_across_link4(t_cross);
+    let (a, b, c) = (link.a, link.b, link.centre);
     let mut w = moving(DebrisShape::capsule(0.3, 0.01), p0, v, 0.0, 3.0, 0.0);
     w.set_margin(0.0);
     let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
@@ -155,7 +162,7 @@ fn a_thin_fast_rod_does_not_slip_between_samples() {
     assert!(!r.ok, "{r:?}");
     assert!((r.t_fail - t_cross).abs() < 0.1, "{r:?}");
     // The same rod passing 5 cm above the link's capsule (beyond δ/2) is not reported.
-    let top = a[2].max(b[2]) + caps[4].r;
+    let top = a[2].max(b[2]) + link.r;
     let z = top + 0.05 + 0.01 + 0.3 - c[2];
     let mut w2 = moving(DebrisShape::capsule(0.3, 0.01), [p0[0], p0[1], p0[2] + z], v, 0.0, 3.0, 0.0);
     w2.set_margin(0.0);
@@ -470,4 +477,190 @@ fn the_checker_leaves_out_only_what_cannot_lower_its_capped_clearance() {
         }
     }
     assert!(near > 50, "cases exercised: {near} near");
+}
+
+/// Random forecast-like tracks (0.1 s steps, turning, σ growing unevenly).
+fn random_world(rng: &mut rand::rngs::SmallRng, n: u32) -> WorldInTime {
+    use rand::Rng;
+    let shapes = [
+        DebrisShape::sphere(0.3),
+        DebrisShape::capsule(0.6, 0.05),
+        DebrisShape::cuboid([0.4, 0.3, 0.02], [0.1, 0.0, 0.0]),
+    ];
+    let mut w = WorldInTime::new(0.05);
+    for id in 0..n {
+        let p0: [f64; 3] = std::array::from_fn(|_| rng.random_range(-2.5..2.5));
+        let v: [f64; 3] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+        let wz = rng.random_range(-3.0..3.0);
+        let mut sigma = 0.01;
+        let poses: Vec<TimedPose> = (0..=40)
+            .map(|k| {
+                let t = 0.1 * (k + 1) as f64;
+                let a = 0.5 * wz * t;
+                sigma += rng.random_range(0.0..0.3) * rng.random_range(0.0..1.0f64).powi(4);
+                TimedPose {
+                    t,
+                    p: [p0[0] + v[0] * t, p0[1] + v[1] * t, p0[2] + v[2] * t],
+                    q: [a.cos(), 0.0, a.sin() * 0.6, a.sin() * 0.8],
+                    sigma,
+                    sigma_pos: 0.5 * sigma,
+                }
+            })
+            .collect();
+        w.push_track(id, shapes[id as usize % 3], &poses, After::Extrapolate).unwrap();
+    }
+    w
+}
+
+#[test]
+fn a_tracks_speed_over_a_window_bounds_its_motion_there() {
+    // Centre and σ together move no faster than `speed_within` over any window, which is never
+    // above the track's speed over its whole forecast (and is much below it in most windows).
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
+    let mut lower = 0;
+    let mut windows = 0;
+    for _ in 0..30 {
+        let w = random_world(&mut rng, 6);
+        for i in 0..w.len() {
+            for _ in 0..20 {
+                let a = rng.random_range(-0.5..5.5);
+                let b = a + rng.random_range(0.0..1.5);
+                let v = w.speed_within(i, a, b);
+                assert!(v <= w.max_speed() + 1e-12);
+                windows += 1;
+                lower += (v < 0.8 * w.max_speed()) as usize;
+                let (mut pp, _, mut sp, _, _) = w.pose_at(i, a);
+                for k in 1..=50 {
+                    let t = a + (b - a) * k as f64 / 50.0;
+                    let (p, _, s, _, _) = w.pose_at(i, t);
+                    let moved = ((p[0] - pp[0]).powi(2) + (p[1] - pp[1]).powi(2) + (p[2] - pp[2]).powi(2))
+                        .sqrt()
+                        + (s - sp).abs();
+                    assert!(moved <= v * (b - a) / 50.0 + 1e-9, "track {i} in [{a}, {b}]: {moved} > {v}");
+                    (pp, sp) = (p, s);
+                }
+            }
+        }
+    }
+    assert!(lower * 2 > windows, "a window's speed is rarely below the whole forecast's: {lower}/{windows}");
+}
+
+#[test]
+fn each_tracks_gap_is_a_lower_bound_on_its_clearance() {
+    // The per-track gaps the checker spaces its samples by never exceed the track's true
+    // clearance from the arm (measured without a cap), for tracks left out or kept.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(11);
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    let (mut obs, mut one) = (Vec::with_capacity(32), Vec::with_capacity(32));
+    let mut gaps = Gaps::default();
+    let mut kept = 0;
+    for _ in 0..60 {
+        let w = random_world(&mut rng, 10);
+        for _ in 0..20 {
+            let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+            let t = rng.random_range(0.0..4.5);
+            poser.pose(&q, &mut caps);
+            let n = caps.len() as f64;
+            let c: [f64; 3] = std::array::from_fn(|k| caps.iter().map(|x| x.centre[k]).sum::<f64>() / n);
+            let r = caps
+                .iter()
+                .map(|x| ((0..3).map(|k| (x.centre[k] - c[k]).powi(2)).sum::<f64>()).sqrt() + x.bound)
+                .fold(0.0, f64::max);
+            let near = dkrrt_rrt::world::Near { arm: &caps, centre: &c, radius: r, cap: 1.0 };
+            w.obstacles_gapped(t, 0.015, u64::MAX, Some(near), &mut obs, Some(&mut gaps));
+            kept += obs.len();
+            for i in 0..w.len() {
+                w.obstacles_within(t, 0.015, 1 << i, None, &mut one);
+                let truth = dkrrt_collision::clearance(&caps, &one, f64::NEG_INFINITY, f64::INFINITY);
+                assert!(gaps.gap[i] <= truth + 1e-9, "track {i} at {t}: gap {} > {truth}", gaps.gap[i]);
+            }
+            for (k, o) in obs.iter().enumerate() {
+                assert_eq!(w.id(gaps.track[k] as usize), o.id);
+            }
+        }
+    }
+    assert!(kept > 0, "some tracks must be near enough to be kept");
+}
+
+#[test]
+fn a_fast_track_far_away_does_not_shorten_the_samples_near_a_slow_one() {
+    // A slow ball rests 0.2 m from the resting arm; a thin rod crosses the arm 3 s later at
+    // 8 m/s. The contact with the rod is found (nothing slips between samples), and until the
+    // rod comes near the samples are spaced by the slow ball, not by the rod's speed.
+    let t_cross = 3.05;
+    let (link, p0, v) = rod_across_link4(t_cross);
+    let mut w = moving(DebrisShape::capsule(0.3, 0.01), p0, v, 0.0, 4.0, 0.0);
+    let ball_at = [link.centre[0], link.centre[1], link.a[2].max(link.b[2]) + link.r + 0.2 + 0.1];
+    let ball: Vec<TimedPose> = (0..=40)
+        .map(|k| TimedPose { t: 0.1 * k as f64, p: ball_at, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 })
+        .collect();
+    w.push_track(2, DebrisShape::sphere(0.1), &ball, After::Hold).unwrap();
+    w.set_margin(0.0);
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let r = ch.check(&w, 0.0, 4.0, 4.0, false, |_| START);
+    assert!(!r.ok && (r.t_fail - t_cross).abs() < 0.1, "{r:?}");
+    // One speed for all tracks would space the first 2.5 s by at most (cap + δ) / 8 m/s.
+    let uniform = (2.5 * 8.0 / (ch.cap + ch.delta())).floor() as u32;
+    let r = ch.check(&w, 0.0, 2.5, 2.5, false, |_| START);
+    assert!(r.ok && r.samples * 2 < uniform, "{} samples (uniform spacing: {uniform})", r.samples);
+}
+
+#[test]
+fn a_search_to_beat_an_arrival_returns_only_earlier_plans_and_checks_no_later_edge() {
+    let (mid, t_mid) = straight_mid_point();
+    let v = [0.0, 0.0, 0.6];
+    let p0 = [mid[0] - v[0] * t_mid, mid[1] - v[1] * t_mid, mid[2] - v[2] * t_mid];
+    let w = moving(DebrisShape::sphere(0.25), p0, v, 0.0, 30.0, 0.02);
+    let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let mut p = planner();
+    let best = p.plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
+    // Nothing arrives before the start: no edge is even checked, and no escape is offered.
+    assert_eq!(p.plan_to_beat(&req, &w, 0.0, 2000, || true, 3, &mut out), None);
+    assert_eq!(p.stats.edges_checked, 0, "{:?}", p.stats);
+    // Beating a late arrival: a plan to the goal that arrives before it, checked clean.
+    let late = best.arrival + 5.0;
+    let mut q = planner();
+    let again = q.plan_to_beat(&req, &w, late, 2000, || true, 4, &mut out).expect("a plan");
+    assert_eq!(again.reach, Reach::Goal);
+    assert!(again.arrival < late);
+    let look = q.cfg.lookahead_s;
+    let (ok, _) = check_message(&mut q, &w, &out, 0.0, look);
+    assert!(ok);
+    // Whatever it finds against a tight bound arrives before it.
+    for k in 1..=5 {
+        let before = best.arrival - 0.05 * k as f64;
+        if let Some(b) = q.plan_to_beat(&req, &w, before, 2000, || true, 5, &mut out) {
+            assert!(b.reach == Reach::Goal && b.arrival < before, "{b:?} vs {before}");
+        }
+    }
+}
+
+#[test]
+fn message_speed_peaks_bound_the_sampled_joint_speeds() {
+    let (mid, t_mid) = straight_mid_point();
+    let v = [0.0, 0.0, 0.6];
+    let p0 = [mid[0] - v[0] * t_mid, mid[1] - v[1] * t_mid, mid[2] - v[2] * t_mid];
+    let w = moving(DebrisShape::sphere(0.25), p0, v, 0.0, 30.0, 0.02);
+    let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    planner().plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
+    let d = out.duration_s;
+    for (a, b) in [(0.0, d), (0.1 * d, 0.3 * d), (0.5 * d, 0.52 * d), (0.9 * d, d + 3.0), (d + 1.0, d + 2.0)] {
+        let peaks = message_speed_peaks(&out, a, b);
+        let mut seen = [0.0f64; NJ];
+        for k in 0..=2000 {
+            let s = out.sample(a + (b - a) * k as f64 / 2000.0);
+            for j in 0..NJ {
+                seen[j] = seen[j].max(s.v[j].abs());
+            }
+        }
+        for j in 0..NJ {
+            assert!(peaks[j] >= seen[j] - 1e-12, "[{a}, {b}] joint {j}: {} < {}", peaks[j], seen[j]);
+            assert!(peaks[j] <= seen[j] + limits().a_max[j] * (b - a) / 2000.0 + 1e-9, "[{a}, {b}] joint {j}");
+        }
+    }
 }

@@ -162,6 +162,20 @@ impl<const N: usize> Trajectory<N> {
         &self.seg[j][..self.n_seg[j]]
     }
 
+    /// Each joint's largest speed `|v|` over `[0, duration]` (exact: at the segments' ends and
+    /// where their acceleration crosses zero, [`speed_peak`]). A point of the arm moved by
+    /// this trajectory moves at most `Σ_j peak_j · lever_j`.
+    pub fn speed_peaks(&self) -> [f64; N] {
+        let mut out = [0.0; N];
+        for (j, m) in out.iter_mut().enumerate() {
+            *m = self.end[j][1].abs();
+            for sg in self.joint_segments(j) {
+                *m = m.max(speed_peak(sg.v0, sg.a0, sg.jerk, sg.t1 - sg.t0));
+            }
+        }
+        out
+    }
+
     /// Each joint's position extrema over `[0, duration]`.
     pub fn position_extrema(&self) -> [Extrema; N] {
         let mut out = [Extrema { min: 0.0, max: 0.0, t_min: 0.0, t_max: 0.0 }; N];
@@ -202,4 +216,21 @@ impl<const N: usize> Trajectory<N> {
         }
         out
     }
+}
+
+/// The largest `|v(τ)|` of a constant-jerk piece over `τ ∈ [0, len]`, with
+/// `v(τ) = v0 + a0 τ + jerk τ²/2`: the larger of its ends and, where the acceleration
+/// `a0 + jerk τ` crosses zero inside the piece, the turning point.
+#[inline]
+pub fn speed_peak(v0: f64, a0: f64, jerk: f64, len: f64) -> f64 {
+    let len = len.max(0.0);
+    let v_at = |t: f64| v0 + t * (a0 + t * jerk / 2.0);
+    let mut m = v0.abs().max(v_at(len).abs());
+    if jerk != 0.0 {
+        let tz = -a0 / jerk;
+        if tz > 0.0 && tz < len {
+            m = m.max(v_at(tz).abs());
+        }
+    }
+    m
 }

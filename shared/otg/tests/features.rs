@@ -216,3 +216,44 @@ fn random_velocity_interface() {
         }
     }
 }
+
+/// `speed_peaks` is each joint's exact largest |v|: never below a dense sampling of the
+/// trajectory, and reached by it within the sampling's resolution.
+#[test]
+fn speed_peaks_bound_and_meet_the_sampled_speeds() {
+    let lim = lim7();
+    let mut rng = SmallRng::seed_from_u64(31);
+    for case in 0..300 {
+        let r = |rng: &mut SmallRng, m: f64| m * (2.0 * rng.random::<f64>() - 1.0);
+        let cur = KinState {
+            p: std::array::from_fn(|_| r(&mut rng, 1.0)),
+            v: std::array::from_fn(|j| r(&mut rng, 0.8 * lim.v_max[j])),
+            a: std::array::from_fn(|j| r(&mut rng, 0.5 * lim.a_max[j])),
+        };
+        let target = KinState::rest(std::array::from_fn(|_| r(&mut rng, 2.0)));
+        let sync = if case % 2 == 0 { Sync::Phase } else { Sync::Time };
+        let Ok(tr) = Trajectory::calculate(&cur, &target, &lim, &Options { sync, ..Options::default() }) else {
+            continue;
+        };
+        let peaks = tr.speed_peaks();
+        let n = 4000;
+        let mut seen = [0.0f64; 7];
+        for k in 0..=n {
+            let s = tr.at(tr.duration() * k as f64 / n as f64);
+            for j in 0..7 {
+                seen[j] = seen[j].max(s.v[j].abs());
+            }
+        }
+        let dt = tr.duration() / n as f64;
+        for j in 0..7 {
+            assert!(peaks[j] >= seen[j] - 1e-12, "case {case} joint {j}: {} < {}", peaks[j], seen[j]);
+            // Between two samples |v| changes by at most a_max·dt.
+            assert!(peaks[j] <= seen[j] + lim.a_max[j] * dt + 1e-9, "case {case} joint {j}");
+            assert!(peaks[j] <= lim.v_max[j].max(cur.v[j].abs()) + 1e-6, "case {case} joint {j}");
+        }
+    }
+    // One constant-jerk piece: the turning point inside, the ends outside it.
+    assert!((dkrrt_otg::speed_peak(0.0, 2.0, -4.0, 1.0) - 0.5).abs() < 1e-12);
+    assert!((dkrrt_otg::speed_peak(1.0, 0.0, -6.0, 1.0) - 2.0).abs() < 1e-12);
+    assert_eq!(dkrrt_otg::speed_peak(-0.3, 0.0, 0.0, 5.0), 0.3);
+}
