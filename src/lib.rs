@@ -6,6 +6,7 @@
 //! process shell (`dkrrt sim`, `dkrrt tracker`, `dkrrt goto`, `dkrrt predictor`), plus
 //! `dkrrt train` / `dkrrt predict-eval` ([`train`]).
 
+pub mod ahead;
 pub mod depth_view;
 pub mod faults;
 pub mod figures;

@@ -119,8 +119,8 @@ pub struct PredictorLoop {
     pub tracks: u32,
     /// A forecast newer than the planner's last cycle.
     pub fresh: bool,
-    lim: ContractLimits,
-    rate_hz: f64,
+    pub(crate) lim: ContractLimits,
+    pub(crate) rate_hz: f64,
     /// Due forecasts that nobody was going to read: only their calibration was done
     /// ([`PredictorCore::observe_then_forecast_if`]).
     pub deferred: u64,
@@ -131,7 +131,7 @@ pub struct PredictorLoop {
     /// Defer the forecasts nobody reads (the default; `false`: build every one, as the
     /// predictor process does).
     pub lazy: bool,
-    latest_deferred: bool,
+    pub(crate) latest_deferred: bool,
     /// A due forecast is written when the planner's next cycle is at most this far ahead:
     /// the longest gap between due forecasts of the pose sensor (the slower of its and the
     /// forecast rate, plus its latency jitter), so a later one comes before the cycle unless
@@ -142,11 +142,11 @@ pub struct PredictorLoop {
 impl PredictorLoop {
     /// Whether a forecast due now (`now_ns`) could be the one the planner reads at its next
     /// cycle (`None`: no planner reads forecasts).
-    fn read(&self, now_ns: u64, next_cycle_ns: Option<u64>) -> bool {
+    pub(crate) fn read(&self, now_ns: u64, next_cycle_ns: Option<u64>) -> bool {
         !self.lazy || next_cycle_ns.is_some_and(|c| c.saturating_sub(now_ns) <= self.read_window_ns)
     }
 
-    fn count(&mut self, c: Cadence) {
+    pub(crate) fn count(&mut self, c: Cadence) {
         match c {
             Cadence::Written(n) if n > 0 => {
                 (self.forecasts, self.tracks, self.fresh, self.latest_deferred) =
@@ -235,6 +235,9 @@ pub struct Lockstep {
     /// With the trace: every debris object's true position (base frame) per sample,
     /// `(t_s, id, p)`.
     pub debris_trace: Vec<(f64, u32, [f64; 3])>,
+    /// The debris side and the predictor stepped ahead on a second thread
+    /// ([`Lockstep::run_ahead`]).
+    ahead: Option<crate::ahead::Ahead>,
 }
 
 fn mono_ns() -> u64 {
@@ -371,6 +374,7 @@ impl Lockstep {
             prev_q: None,
             trace: None,
             debris_trace: Vec::new(),
+            ahead: None,
         })
     }
 
@@ -392,13 +396,17 @@ impl Lockstep {
         if let TrajSource::Planner { core, out } = &mut self.source {
             if deliver_state && core.cycle_due(stamp) {
                 let view = TrackerView { mode: self.tracker.mode(), traj_id: self.tracker.active_traj_id() };
-                let fc = match (&mut self.predictor, &mut self.oracle) {
-                    (Some(p), _) => {
+                let fc = match (&mut self.predictor, &mut self.oracle, &mut self.ahead) {
+                    (Some(p), _, _) => {
                         p.stale_reads += p.latest_deferred as u64;
                         std::mem::take(&mut p.fresh).then_some(&*p.forecast)
                     }
-                    (None, Some(o)) => std::mem::take(&mut o.fresh).then_some(&*o.forecast),
-                    (None, None) => None,
+                    (None, Some(o), _) => std::mem::take(&mut o.fresh).then_some(&*o.forecast),
+                    (None, None, Some(a)) if a.predictor.is_some() || a.fresh => {
+                        a.stale_reads += a.latest_deferred as u64;
+                        std::mem::take(&mut a.fresh).then_some(&*a.forecast)
+                    }
+                    _ => None,
                 };
                 let mut clock = self.clock;
                 let d = core.step(stamp, &m.q, view, fc, &self.goal, &mut clock, out);
@@ -432,16 +440,26 @@ impl Lockstep {
             TrajSource::Straight { .. } => None,
         };
         let now_ns = stamp + self.period_ns;
-        let pred = &mut self.predictor;
-        let poses = !self.camera.as_ref().is_some_and(|c| c.feeds_predictor);
-        let _ = self.sim.step::<()>(&mut self.frame, |f| {
-            if let Some(p) = pred.as_mut().filter(|_| poses) {
-                let read = p.read(now_ns, next_cycle);
-                let c = p.core.observe_then_forecast_if(f, &p.lim, p.rate_hz, &mut p.forecast, read);
-                p.count(c);
+        if let Some(a) = self.ahead.as_mut() {
+            assert!(deliver_state, "lockstep: a run ahead needs every state delivered");
+            let w = a.next_tick();
+            self.sim.step_against(&w.obstacles, w.t);
+            if let Some(d) = self.sim.debris.as_mut() {
+                (d.stats.observations, d.stats.observation_frames, d.stats.events_fired) =
+                    (w.observations, w.observation_frames, w.events_fired);
             }
-            Ok(())
-        });
+        } else {
+            let pred = &mut self.predictor;
+            let poses = !self.camera.as_ref().is_some_and(|c| c.feeds_predictor);
+            let _ = self.sim.step::<()>(&mut self.frame, |f| {
+                if let Some(p) = pred.as_mut().filter(|_| poses) {
+                    let read = p.read(now_ns, next_cycle);
+                    let c = p.core.observe_then_forecast_if(f, &p.lim, p.rate_hz, &mut p.forecast, read);
+                    p.count(c);
+                }
+                Ok(())
+            });
+        }
         if let (Some(c), Some(side)) = (self.camera.as_mut(), self.sim.debris.as_mut()) {
             let q: [f64; NJ] = self.sim.plant.true_state().0.into();
             let pred = &mut self.predictor;
@@ -470,6 +488,36 @@ impl Lockstep {
         if self.goal_reached_s.is_none() && self.at_goal(&q) {
             self.goal_reached_s = Some(self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9);
         }
+    }
+
+    /// Runs the debris world, its sensor and the predictor on a second thread, ahead of the
+    /// plant, tracker and planner ([`crate::ahead`]): the same run, tick for tick, in less wall
+    /// time where a core is free. Only at the start of a run on the pose sensor, without a
+    /// camera, the oracle or a trace, and with every state delivered afterwards (`tick(true)`);
+    /// returns whether it was done.
+    pub fn run_ahead(&mut self, sc: &Scenario) -> Result<bool, String> {
+        if self.sim.plant.tick() != 0
+            || self.started
+            || self.ahead.is_some()
+            || self.camera.is_some()
+            || self.oracle.is_some()
+            || self.trace.is_some()
+            || self.sim.debris.is_none()
+        {
+            return Ok(false);
+        }
+        let side = dkrrt_sim::debris::DebrisSide::new(sc, &self.model)?;
+        let cadence = match &self.source {
+            TrajSource::Planner { core, .. } => Some(core.cycle_clock()),
+            TrajSource::Straight { .. } => None,
+        };
+        self.ahead = Some(crate::ahead::Ahead::start(side, self.predictor.take(), cadence, self.period_ns)?);
+        Ok(true)
+    }
+
+    /// The thread running ahead's allocations so far (`None`: not running ahead).
+    pub fn ahead_allocs(&self) -> Option<u64> {
+        self.ahead.as_ref().map(|a| a.thread_allocs)
     }
 
     /// Keeps a trace of the run from now on (every [`SAMPLE_TICKS`] ticks; allocates its room
@@ -584,6 +632,19 @@ impl Lockstep {
             debris: self.sim.debris.as_ref().map(|d| d.stats),
             camera: self.camera.as_ref().map(|c| c.side.stats),
             predictor: match (&self.predictor, &self.oracle) {
+                (None, None) if self.ahead.as_ref().is_some_and(|a| a.predictor.is_some()) => {
+                    let a = self.ahead.as_ref().expect("ahead");
+                    let p = a.predictor.unwrap_or_default();
+                    Some(PredictorFigures {
+                        method: sc.predictor_method().to_string(),
+                        forecasts: p.forecasts,
+                        tracks: p.tracks,
+                        observations: p.counters,
+                        gate: p.gate,
+                        deferred: p.deferred,
+                        stale_reads: a.stale_reads,
+                    })
+                }
                 (Some(d), _) => Some(PredictorFigures {
                     method: sc.predictor_method().to_string(),
                     forecasts: d.forecasts,
@@ -634,6 +695,9 @@ fn push(events: &mut Vec<ModeEvent>, e: ModeEvent) {
 /// Runs the scenario's duration in lockstep, in process.
 pub fn run(sc: &Scenario) -> Result<EvalReport, String> {
     let mut ls = Lockstep::new(sc)?;
+    if std::thread::available_parallelism().map_or(1, |n| n.get()) > 1 {
+        ls.run_ahead(sc)?;
+    }
     for _ in 0..sc.ticks() {
         ls.tick(true);
     }

@@ -143,3 +143,26 @@ fn the_counting_allocator_sees_allocations() {
     assert_eq!(v.len(), 64);
     assert!(s.allocs >= 1);
 }
+
+#[test]
+fn a_lockstep_run_ahead_allocates_nothing_per_tick_after_warm_up() {
+    // The default threat episode with the planner, the debris side and the predictor stepped
+    // ahead on their own thread: after warm-up neither thread allocates.
+    let mut sc = Scenario::default_scenario();
+    dkrrt_episodes::resolve(&mut sc).unwrap();
+    let mut ls = Lockstep::new(&sc).unwrap();
+    assert!(ls.run_ahead(&sc).unwrap());
+    for _ in 0..3000 {
+        ls.tick(true);
+    }
+    let before = ls.ahead_allocs().unwrap();
+    let mut total = dkrrt_rt::alloc_count::AllocStats::default();
+    for _ in 0..8000 {
+        let ((), s) = count(|| ls.tick(true));
+        total.allocs += s.allocs;
+        total.reallocs += s.reallocs;
+    }
+    assert_eq!((total.allocs, total.reallocs), (0, 0), "the arm's side allocated");
+    assert_eq!(ls.ahead_allocs().unwrap(), before, "the debris thread allocated");
+    assert!(ls.goal_reached_s.is_some() && !ls.collided(), "the run did its work");
+}

@@ -200,3 +200,55 @@ fn forecasts_nobody_reads_are_not_built_and_the_run_is_the_same() {
     assert!(pa.deferred as f64 > 0.5 * pa.forecasts as f64, "{} of {}", pa.deferred, pa.forecasts);
     assert_eq!((pa.stale_reads, pb.deferred, pb.stale_reads), (0, 0, 0));
 }
+
+/// The debris side stepped ahead on a second thread ([`dkrrt::lockstep::Lockstep::run_ahead`])
+/// gives the serial run, tick for tick: the same final state, goal time, contact figures,
+/// planner cycles and predictor figures; with the straight source too, up to its contact.
+#[test]
+fn a_run_ahead_is_the_serial_run() {
+    let mut sc = Scenario::default_scenario();
+    dkrrt_episodes::resolve(&mut sc).unwrap();
+    let mut straight = sc.clone();
+    straight.planner.method = "straight".into();
+    for sc in [&sc, &straight] {
+        let run = |ahead: bool| {
+            let mut ls = dkrrt::lockstep::Lockstep::new(sc).unwrap();
+            if ahead {
+                assert!(ls.run_ahead(sc).unwrap());
+                assert!(!ls.run_ahead(sc).unwrap(), "once only");
+            }
+            let mut ticks = 0;
+            for _ in 0..sc.ticks() {
+                ls.tick(true);
+                ticks += 1;
+                if ls.collided() {
+                    break;
+                }
+            }
+            (ls.report(sc), ticks)
+        };
+        let ((a, ta), (b, tb)) = (run(true), run(false));
+        let m = &sc.planner.method;
+        assert_eq!(ta, tb, "{m}");
+        assert_eq!(a.final_q, b.final_q, "{m}");
+        assert_eq!(a.goal_reached_s, b.goal_reached_s, "{m}");
+        assert_eq!(a.debris.unwrap(), b.debris.unwrap(), "{m}");
+        assert_eq!(a.plant, b.plant, "{m}");
+        match (a.planner, b.planner) {
+            (Some(sa), Some(sb)) => {
+                assert_eq!((sa.cycles, sa.replans, sa.iterations), (sb.cycles, sb.replans, sb.iterations));
+                assert_eq!(sa.min_predicted_clearance_m, sb.min_predicted_clearance_m);
+                assert_eq!(sa.fallbacks, sb.fallbacks);
+                assert!(a.goal_reached_s.is_some() && a.debris.unwrap().first_contact.is_none());
+            }
+            (None, None) => assert!(a.debris.unwrap().first_contact.is_some(), "the straight motion is hit"),
+            _ => panic!("one run planned, the other did not"),
+        }
+        let (pa, pb) = (a.predictor.unwrap(), b.predictor.unwrap());
+        let key = |p: &dkrrt::lockstep::PredictorFigures| {
+            (p.forecasts, p.tracks, p.deferred, p.stale_reads, p.gate, p.observations)
+        };
+        assert_eq!(key(&pa), key(&pb), "{m}");
+        assert!(pa.forecasts > 0);
+    }
+}

@@ -55,4 +55,18 @@ impl SimCore {
         }
         Ok(rep)
     }
+
+    /// [`SimCore::step`] with the debris world stepped elsewhere (a copy of this core's debris
+    /// side, built from the same scenario and stepped tick for tick): integrates the arm and
+    /// checks it against that world's obstacles at plant time `t`. The sensor's frames are
+    /// that copy's to hand on.
+    pub fn step_against(&mut self, obstacles: &[dkrrt_collision::Obstacle], t: f64) -> TickReport {
+        self.plant.step();
+        let mut rep = TickReport::default();
+        if let Some(d) = self.debris.as_mut() {
+            let q = self.plant.true_state().0.into();
+            rep.first_contact = d.check_against(&q, obstacles, t) && d.stats.contact_ticks == 1;
+        }
+        rep
+    }
 }

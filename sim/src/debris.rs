@@ -142,8 +142,17 @@ impl DebrisSide {
         if !q.iter().all(|x| x.is_finite()) {
             return false;
         }
-        self.poser.pose(q, &mut self.capsules);
-        self.obstacles.clear();
+        let mut obstacles = std::mem::take(&mut self.obstacles);
+        self.obstacles_into(&mut obstacles);
+        let hit = self.check_against(q, &obstacles, self.world.time());
+        self.obstacles = obstacles;
+        hit
+    }
+
+    /// The true debris shapes now, posed in LVLH, into `out` (what [`DebrisSide::check`]
+    /// checks the arm against; at most [`MAX_DEBRIS`]). Allocation-free with `out`'s capacity.
+    pub fn obstacles_into(&self, out: &mut Vec<Obstacle>) {
+        out.clear();
         for d in self.world.debris() {
             let p = [d.state.p.x, d.state.p.y, d.state.p.z];
             let qq = d.state.q.quaternion();
@@ -154,12 +163,21 @@ impl DebrisSide {
                 &p,
                 &[qq.w, qq.i, qq.j, qq.k],
             );
-            if self.obstacles.len() < self.obstacles.capacity() {
-                self.obstacles.push(o);
+            if out.len() < out.capacity().min(MAX_DEBRIS) {
+                out.push(o);
             }
         }
-        let t = self.world.time();
-        let mut pr = proximity(&self.capsules, &self.obstacles, self.margin, &mut self.contacts);
+    }
+
+    /// [`DebrisSide::check`] against `obstacles` (the world's, from
+    /// [`DebrisSide::obstacles_into`] at plant time `t`, possibly of another copy of this
+    /// side stepped elsewhere): the same measure, the same figures.
+    pub fn check_against(&mut self, q: &[f64; NJ], obstacles: &[Obstacle], t: f64) -> bool {
+        if !q.iter().all(|x| x.is_finite()) {
+            return false;
+        }
+        self.poser.pose(q, &mut self.capsules);
+        let mut pr = proximity(&self.capsules, obstacles, self.margin, &mut self.contacts);
         // Reported distances are separations: 0 when touching or overlapping (the closed-form
         // primitives measure a penetration, parry's hulls do not; one convention in reports).
         pr.min_distance = pr.min_distance.max(0.0);

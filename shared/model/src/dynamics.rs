@@ -29,14 +29,25 @@ impl ArmModel {
     /// `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` that produce acceleration `qdd` at state
     /// (`q`, `qd`) under the model's gravity.
     pub fn rnea(&self, q: &JVec, qd: &JVec, qdd: &JVec) -> JVec {
-        let mut rot = [Matrix3::zeros(); NJ];
+        self.rnea_posed(&self.joint_rotations(q), qd, qdd)
+    }
+
+    /// Each joint's rotation from its parent at `q` (what every pass over the chain starts
+    /// from; computed once where two passes share it).
+    #[inline]
+    fn joint_rotations(&self, q: &JVec) -> [Matrix3<f64>; NJ] {
+        std::array::from_fn(|i| mul_rz(&self.rc[i], q[i]))
+    }
+
+    /// [`ArmModel::rnea`] with the joint rotations given.
+    fn rnea_posed(&self, rot: &[Matrix3<f64>; NJ], qd: &JVec, qdd: &JVec) -> JVec {
         let mut fn_ = [Vector3::zeros(); NJ];
         let mut ff = [Vector3::zeros(); NJ];
         let (mut wp, mut vp) = (Vector3::zeros(), Vector3::zeros());
         // Gravity enters as a fictitious base acceleration −g.
         let (mut awp, mut avp) = (Vector3::zeros(), -self.gravity);
         for i in 0..NJ {
-            let r = mul_rz(&self.rc[i], q[i]);
+            let r = rot[i];
             let p = &self.pc[i];
             let (mut w, v) = motion_to_child(&r, p, &wp, &vp);
             let (mut aw, mut av) = motion_to_child(&r, p, &awp, &avp);
@@ -51,7 +62,6 @@ impl ArmModel {
             let (l, pm) = inertia.mul(&w, &v);
             fn_[i] = ian + w.cross(&l) + v.cross(&pm);
             ff[i] = iaf + w.cross(&pm);
-            rot[i] = r;
             (wp, vp, awp, avp) = (w, v, aw, av);
         }
         let mut tau = JVec::zeros();
@@ -69,7 +79,11 @@ impl ArmModel {
     /// Joint-space mass (inertia) matrix `M(q)` (composite rigid-body algorithm).
     /// Symmetric positive definite.
     pub fn mass_matrix(&self, q: &JVec) -> JMat {
-        let rot: [Matrix3<f64>; NJ] = std::array::from_fn(|i| mul_rz(&self.rc[i], q[i]));
+        self.mass_matrix_posed(&self.joint_rotations(q))
+    }
+
+    /// [`ArmModel::mass_matrix`] with the joint rotations given.
+    fn mass_matrix_posed(&self, rot: &[Matrix3<f64>; NJ]) -> JMat {
         let mut ic = self.inertia;
         for i in (1..NJ).rev() {
             let t = ic[i].to_parent(&rot[i], &self.pc[i]);
@@ -164,8 +178,10 @@ impl ArmModel {
     /// Forward dynamics: `q̈ = M(q)⁻¹ (τ − C(q, q̇) q̇ − g(q))`, via CRBA and a
     /// Cholesky factorisation.
     pub fn forward_dynamics(&self, q: &JVec, qd: &JVec, tau: &JVec) -> JVec {
-        let m = self.mass_matrix(q);
-        let rhs = tau - self.nonlinear_effects(q, qd);
+        // Both passes start from the same joint rotations.
+        let rot = self.joint_rotations(q);
+        let m = self.mass_matrix_posed(&rot);
+        let rhs = tau - self.rnea_posed(&rot, qd, &JVec::zeros());
         match m.cholesky() {
             Some(ch) => ch.solve(&rhs),
             // Unreachable for a validated model (M is positive definite), kept as
