@@ -32,7 +32,7 @@ use crate::lockstep::PredictorLoop;
 /// Ticks per batch.
 pub const BATCH: usize = 25;
 /// Batches the thread may run ahead by (plus the one being filled and the one being read).
-const IN_FLIGHT: usize = 4;
+const IN_FLIGHT: usize = 16;
 
 /// The predictor's running figures after a tick.
 #[derive(Debug, Clone, Copy, Default)]
