@@ -31,8 +31,10 @@ use crate::lockstep::PredictorLoop;
 
 /// Ticks per batch.
 pub const BATCH: usize = 25;
-/// Batches the thread may run ahead by (plus the one being filled and the one being read).
-const IN_FLIGHT: usize = 16;
+/// Batches the thread may run ahead by (plus the one being filled and the one being read):
+/// 0.2 s of plant time at 1 kHz, so the debris side keeps working through a long planning
+/// cycle.
+const IN_FLIGHT: usize = 8;
 
 /// The predictor's running figures after a tick.
 #[derive(Debug, Clone, Copy, Default)]
@@ -69,7 +71,8 @@ struct Batch {
 }
 
 impl Batch {
-    fn new() -> Batch {
+    /// A batch with room for `forecasts` forecast copies (more are allocated if ever needed).
+    fn new(forecasts: usize) -> Batch {
         let ticks = (0..BATCH)
             .map(|_| WorldTick {
                 obstacles: Vec::with_capacity(MAX_DEBRIS),
@@ -82,7 +85,8 @@ impl Batch {
                 predictor: None,
             })
             .collect();
-        Batch { ticks, forecasts: Vec::with_capacity(BATCH), used: 0, allocs: 0 }
+        let forecasts = (0..forecasts).map(|_| Box::new(<DebrisForecast as Zeroed>::zeroed())).collect();
+        Batch { ticks, forecasts, used: 0, allocs: 0 }
     }
 }
 
@@ -118,8 +122,13 @@ impl Ahead {
     ) -> Result<Ahead, String> {
         let (full_tx, full) = sync_channel::<Batch>(IN_FLIGHT);
         let (empty, empty_rx) = sync_channel::<Batch>(IN_FLIGHT + 2);
+        // At most one forecast per `1 / rate` of plant time, so a batch holds at most this many
+        // (one more for the rounding): allocated here, not while running.
+        let per_batch = predictor.as_ref().map_or(0, |p| {
+            (BATCH as f64 * period_ns as f64 * 1e-9 * p.rate_hz).ceil() as usize + 1
+        });
         for _ in 0..IN_FLIGHT + 2 {
-            empty.send(Batch::new()).map_err(|e| e.to_string())?;
+            empty.send(Batch::new(per_batch)).map_err(|e| e.to_string())?;
         }
         let thread = std::thread::Builder::new()
             .name("debris-ahead".into())
