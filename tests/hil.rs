@@ -172,17 +172,35 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
     std::fs::create_dir_all(&dir).unwrap();
     let sc = scenario(&dir, "");
     let out = dir.join("out");
-    let o = Command::new(exe())
-        .arg("latency")
-        .arg("--scenario")
-        .arg(&sc)
-        .args(["--duration", "3", "--load", "cpu", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let text = format!("{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
-    assert!(o.status.success(), "{text}");
-    let r: Value = serde_json::from_str(&std::fs::read_to_string(out.join("latency.json")).unwrap()).unwrap();
+    let suite = || -> (Value, String) {
+        let o = Command::new(exe())
+            .arg("latency")
+            .arg("--scenario")
+            .arg(&sc)
+            .args(["--duration", "3", "--load", "cpu", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let text = format!("{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        assert!(o.status.success(), "{text}");
+        let r = serde_json::from_str(&std::fs::read_to_string(out.join("latency.json")).unwrap()).unwrap();
+        (r, String::from_utf8_lossy(&o.stdout).into_owned())
+    };
+    // More than a tenth of a leg's pings unanswered (see below): measured once more. A VM
+    // that stalls (disk write-back right after a build) can lose a quarter of the 94 kB
+    // forecast pings in one 3 s run; a bookkeeping bug loses them in every run.
+    let lossy = |r: &Value| {
+        r["ipc"].as_array().is_some_and(|ipc| {
+            ipc.iter().any(|x| {
+                ["bus", "raw"].iter().any(|p| num(&x[p], "/timeouts") > 0.1 * num(&x[p], "/round_trip_us/count"))
+            })
+        })
+    };
+    let (mut r, mut stdout) = suite();
+    if lossy(&r) {
+        eprintln!("many pings unanswered: measuring once more");
+        (r, stdout) = suite();
+    }
     assert_eq!(r["load"], "cpu");
     // Every series has samples from the same 3 s (1 kHz), in order p50 <= p99 <= p99.9 <= max.
     let check = |p: &Value, min: f64, what: &str| {
@@ -218,7 +236,6 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
     for f in ["latency-wake.svg", "latency-wake.png", "latency-ipc.svg", "latency-ipc.png"] {
         assert!(std::fs::metadata(out.join(f)).unwrap().len() > 5_000, "{f}");
     }
-    let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.lines().last().unwrap().starts_with("latency: "), "{stdout}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -146,6 +146,9 @@ const ROOT: u32 = 0;
 pub const DODGE_DT: f64 = 0.05;
 const DODGE_RANDOM: usize = 20;
 pub const DODGE_GAIN_M: f64 = 0.01;
+/// When every candidate goes deeper than `dodge_depth_m` within the look-ahead (a bound that
+/// engulfs the arm's reach), a dodge must put that off by this much over staying, s.
+pub const DODGE_TIME_GAIN_S: f64 = 0.5;
 
 /// What checking an edge found.
 enum Edge {
@@ -576,9 +579,13 @@ impl Planner {
     /// negative values are depths into the inflated obstacles), is the largest. Written into
     /// `out` only when that beats staying (at rest at the start, or the brake from a moving
     /// start) by [`DODGE_GAIN_M`] and goes no deeper than `dodge_depth_m` into the inflated
-    /// obstacles (deeper, it would most likely meet the object itself: brake instead). A best
-    /// effort, not a clean plan: its clearance may be negative, and the next cycle checks it
-    /// like any other plan. Candidates are tried while `keep_going()` (the cycle's deadline).
+    /// obstacles (deeper, it would most likely meet the object itself: brake instead). When
+    /// every candidate, staying included, goes that deep before the look-ahead's end (a bound
+    /// grown over the whole reach, as after a fragment splits off), the one that goes that deep
+    /// latest is taken if it puts that off by [`DODGE_TIME_GAIN_S`] over staying: the object is
+    /// most likely where its bound grows from. A best effort, not a clean plan: its clearance
+    /// may be negative, and the next cycle checks it like any other plan. Candidates are tried
+    /// while `keep_going()` (the cycle's deadline).
     pub fn dodge(
         &mut self,
         req: &Request,
@@ -590,8 +597,9 @@ impl Planner {
         self.reset(req);
         // Staying: the rest at the start, or the brake to rest.
         let stay_q = if self.root_moving { self.brake_point(&req.start)? } else { req.start.p };
-        let (stay, _) = self.dodge_score(world, &stay_q)?;
-        let mut best: Option<([f64; NJ], f64, f64)> = None;
+        let (stay, stay_deep, _) = self.dodge_score(world, &stay_q)?;
+        // (q, clearance, first time deeper than the dodge depth, arrival)
+        let mut best: Option<([f64; NJ], f64, f64, f64)> = None;
         let step = self.cfg.step_rad;
         for k in 0..(2 * NJ + DODGE_RANDOM + 1) {
             if !keep_going() {
@@ -607,17 +615,20 @@ impl Planner {
                 req.goal
             };
             let q: [f64; NJ] = std::array::from_fn(|j| q[j].clamp(self.q_min[j], self.q_max[j]));
-            if let Some((score, arrival)) = self.dodge_score(world, &q) {
-                if best.is_none_or(|b| score > b.1) {
-                    best = Some((q, score, arrival));
+            if let Some((score, deep, arrival)) = self.dodge_score(world, &q) {
+                // The most clearance; among candidates that all go too deep, the latest to.
+                if best.is_none_or(|b| deep > b.2 || (deep == b.2 && score > b.1)) {
+                    best = Some((q, score, deep, arrival));
                 }
             }
         }
-        let (q, score, arrival) = best?;
-        if score < stay + DODGE_GAIN_M
-            || score < -self.cfg.dodge_depth_m
-            || self.nodes.len() >= self.nodes.capacity()
-        {
+        let (q, score, deep, arrival) = best?;
+        let takes = if deep.is_finite() {
+            deep >= stay_deep + DODGE_TIME_GAIN_S
+        } else {
+            score >= stay + DODGE_GAIN_M
+        };
+        if !takes || self.nodes.len() >= self.nodes.capacity() {
             return None;
         }
         self.nodes.push(Node { q, t: arrival, parent: ROOT, wait: 0.0, min_clear: score });
@@ -626,14 +637,15 @@ impl Planner {
     }
 
     /// The smallest predicted clearance of "move from the root to rest at `q`, then stay",
-    /// sampled every [`DODGE_DT`] to the look-ahead's end, and the arrival time.
-    fn dodge_score(&mut self, world: &WorldInTime, q: &[f64; NJ]) -> Option<(f64, f64)> {
+    /// sampled every [`DODGE_DT`] to the look-ahead's end, the first sample time at which it
+    /// is deeper than `dodge_depth_m` (infinite: never), and the arrival time.
+    fn dodge_score(&mut self, world: &WorldInTime, q: &[f64; NJ]) -> Option<(f64, f64, f64)> {
         let tr = self.motion(&self.root, q);
         if tr.is_none() && (self.root_moving || *q != self.root.p) {
             return None;
         }
         let (t0, t_end, d) = (self.t0, self.t_end(), tr.as_ref().map_or(0.0, |t| t.duration()));
-        let mut m = f64::INFINITY;
+        let (mut m, mut deep) = (f64::INFINITY, f64::INFINITY);
         let mut t = t0;
         while t <= t_end + 1e-9 {
             let at = match &tr {
@@ -641,9 +653,12 @@ impl Planner {
                 _ => *q,
             };
             m = m.min(self.checker.clearance_at(world, &at, t, 0.0, f64::NEG_INFINITY));
+            if m < -self.cfg.dodge_depth_m && deep.is_infinite() {
+                deep = t;
+            }
             t += DODGE_DT;
         }
-        Some((m, t0 + d))
+        Some((m, deep, t0 + d))
     }
 
     /// The intermediate waypoints of the last written plan (rest configurations after the start,

@@ -664,3 +664,48 @@ fn message_speed_peaks_bound_the_sampled_joint_speeds() {
         }
     }
 }
+
+/// A bound that engulfs the arm's whole reach (a ball 0.4 m beside link 4 whose position bound
+/// grows at 0.3 m/s, to 1.5 m over the look-ahead, as after a fragment splits off): every motion and every rest goes deeper
+/// than the dodge depth within the look-ahead. The dodge then takes the motion that goes that
+/// deep latest, away from where the bound grows from, when it buys at least
+/// `DODGE_TIME_GAIN_S` over staying.
+#[test]
+fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
+    let (r, t0) = (0.1, 2.0);
+    let (gap, rate) = (0.4, 0.3);
+    let (p0, _) = coming_at_link(r, 0.05, -gap, 0.0, t0);
+    let poses: Vec<TimedPose> = (0..=40)
+        .map(|k| {
+            let t = t0 + 0.1 * k as f64;
+            let s = 0.05 + rate * (t - t0);
+            TimedPose { t, p: p0, q: [1.0, 0.0, 0.0, 0.0], sigma: s, sigma_pos: s }
+        })
+        .collect();
+    let mut w = WorldInTime::new(0.05);
+    w.push_track(1, DebrisShape::sphere(r), &poses, After::Extrapolate).unwrap();
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let depth = p.cfg.dodge_depth_m;
+    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
+    assert_eq!(plan.reach, Reach::Escape);
+    // Measured every millisecond: when the dodge and staying first go deeper than the depth.
+    let t_end = t0 + PlannerConfig::default().lookahead_s;
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let (mut moved, mut stay) = (f64::INFINITY, f64::INFINITY);
+    let mut t = t0;
+    while t <= t_end {
+        let q = out.sample(t - t0).p;
+        if moved.is_infinite() && ch.clearance_at(&w, &q, t, 0.0, f64::NEG_INFINITY) < -depth {
+            moved = t;
+        }
+        if stay.is_infinite() && ch.clearance_at(&w, &START, t, 0.0, f64::NEG_INFINITY) < -depth {
+            stay = t;
+        }
+        t += 1e-3;
+    }
+    assert!(moved.is_finite() && stay.is_finite(), "set-up: both go too deep ({moved}, {stay})");
+    assert!(moved >= stay + DODGE_TIME_GAIN_S - DODGE_DT, "dodge deep at {moved:.3}, staying at {stay:.3}");
+}
