@@ -200,6 +200,22 @@ fn coming_at_link(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> ([f64
     ([k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]], v)
 }
 
+/// Every millisecond of the look-ahead from `t0`: (t, the clearance of the dodge `out`, the
+/// clearance of staying at `START`).
+fn dodge_and_stay_each_ms(w: &WorldInTime, out: &Trajectory, t0: f64) -> Vec<(f64, f64, f64)> {
+    let t_end = t0 + PlannerConfig::default().lookahead_s;
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let n = ((t_end - t0) / 1e-3) as usize;
+    (0..=n)
+        .map(|k| {
+            let t = t0 + k as f64 * 1e-3;
+            let q = out.sample(t - t0).p;
+            let c = |q: &[f64; NJ], ch: &mut Checker| ch.clearance_at(w, q, t, 0.0, f64::NEG_INFINITY);
+            (t, c(&q, &mut ch), c(&START, &mut ch))
+        })
+        .collect()
+}
+
 /// A newer forecast can put the resting arm just inside an obstacle's inflation (bound plus
 /// margin) while the object itself is still away: the planner must move the arm out, never
 /// deeper than the relief allows, and out within its time; resting there is not clear.
@@ -261,16 +277,9 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     assert_eq!(plan.reach, Reach::Escape);
     assert_eq!(out.traj_id, 9);
     // Measured every millisecond over the look-ahead: the dodge against staying.
-    let t_end = t0 + PlannerConfig::default().lookahead_s;
-    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
-    let (mut moved, mut stay) = (f64::INFINITY, f64::INFINITY);
-    let mut t = t0;
-    while t <= t_end {
-        let q = out.sample(t - t0).p;
-        moved = moved.min(ch.clearance_at(&w, &q, t, 0.0, f64::NEG_INFINITY));
-        stay = stay.min(ch.clearance_at(&w, &START, t, 0.0, f64::NEG_INFINITY));
-        t += 1e-3;
-    }
+    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    let moved = each.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+    let stay = each.iter().map(|x| x.2).fold(f64::INFINITY, f64::min);
     assert!(moved > stay + 0.5 * DODGE_GAIN_M, "dodge {moved:.3} vs staying {stay:.3}");
     assert!((plan.min_clearance - moved).abs() < 0.02, "{} vs {moved}", plan.min_clearance);
     let s0 = out.sample(0.0);
@@ -608,13 +617,19 @@ fn a_fast_track_far_away_does_not_shorten_the_samples_near_a_slow_one() {
     assert!(r.ok && r.samples * 2 < uniform, "{} samples (uniform spacing: {uniform})", r.samples);
 }
 
-#[test]
-fn a_search_to_beat_an_arrival_returns_only_earlier_plans_and_checks_no_later_edge() {
+/// A sphere rising through the straight motion's middle at its time, and the request from rest
+/// at `START` at time 0.
+fn crossing_sphere() -> (WorldInTime, Request) {
     let (mid, t_mid) = straight_mid_point();
     let v = [0.0, 0.0, 0.6];
     let p0 = [mid[0] - v[0] * t_mid, mid[1] - v[1] * t_mid, mid[2] - v[2] * t_mid];
     let w = moving(DebrisShape::sphere(0.25), p0, v, 0.0, 30.0, 0.02);
-    let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+    (w, Request { start: KinState::rest(START), t0: 0.0, goal: GOAL })
+}
+
+#[test]
+fn a_search_to_beat_an_arrival_returns_only_earlier_plans_and_checks_no_later_edge() {
+    let (w, req) = crossing_sphere();
     let mut out = <Trajectory as Zeroed>::zeroed();
     let mut p = planner();
     let best = p.plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
@@ -641,11 +656,7 @@ fn a_search_to_beat_an_arrival_returns_only_earlier_plans_and_checks_no_later_ed
 
 #[test]
 fn message_speed_peaks_bound_the_sampled_joint_speeds() {
-    let (mid, t_mid) = straight_mid_point();
-    let v = [0.0, 0.0, 0.6];
-    let p0 = [mid[0] - v[0] * t_mid, mid[1] - v[1] * t_mid, mid[2] - v[2] * t_mid];
-    let w = moving(DebrisShape::sphere(0.25), p0, v, 0.0, 30.0, 0.02);
-    let req = Request { start: KinState::rest(START), t0: 0.0, goal: GOAL };
+    let (w, req) = crossing_sphere();
     let mut out = <Trajectory as Zeroed>::zeroed();
     planner().plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
     let d = out.duration_s;
@@ -665,11 +676,11 @@ fn message_speed_peaks_bound_the_sampled_joint_speeds() {
     }
 }
 
-/// A bound that engulfs the arm's whole reach (a ball 0.4 m beside link 4 whose position bound
-/// grows at 0.3 m/s, to 1.5 m over the look-ahead, as after a fragment splits off): every motion and every rest goes deeper
-/// than the dodge depth within the look-ahead. The dodge then takes the motion that goes that
-/// deep latest, away from where the bound grows from, when it buys at least
-/// `DODGE_TIME_GAIN_S` over staying.
+/// A bound that engulfs the arm's whole reach (a ball 0.4 m beside link 4 whose position
+/// bound grows at 0.3 m/s, to 1.5 m over the look-ahead, as after a fragment splits off):
+/// every motion and every rest goes deeper than the dodge depth within the look-ahead. The
+/// dodge then takes the motion that goes that deep latest, away from where the bound grows
+/// from, when it buys at least `DODGE_TIME_GAIN_S` over staying.
 #[test]
 fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
     let (r, t0) = (0.1, 2.0);
@@ -692,20 +703,9 @@ fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
     let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
     assert_eq!(plan.reach, Reach::Escape);
     // Measured every millisecond: when the dodge and staying first go deeper than the depth.
-    let t_end = t0 + PlannerConfig::default().lookahead_s;
-    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
-    let (mut moved, mut stay) = (f64::INFINITY, f64::INFINITY);
-    let mut t = t0;
-    while t <= t_end {
-        let q = out.sample(t - t0).p;
-        if moved.is_infinite() && ch.clearance_at(&w, &q, t, 0.0, f64::NEG_INFINITY) < -depth {
-            moved = t;
-        }
-        if stay.is_infinite() && ch.clearance_at(&w, &START, t, 0.0, f64::NEG_INFINITY) < -depth {
-            stay = t;
-        }
-        t += 1e-3;
-    }
+    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    let first = |f: fn(&(f64, f64, f64)) -> f64| each.iter().find(|x| f(x) < -depth).map_or(f64::INFINITY, |x| x.0);
+    let (moved, stay) = (first(|x| x.1), first(|x| x.2));
     assert!(moved.is_finite() && stay.is_finite(), "set-up: both go too deep ({moved}, {stay})");
     assert!(moved >= stay + DODGE_TIME_GAIN_S - DODGE_DT, "dodge deep at {moved:.3}, staying at {stay:.3}");
 }
