@@ -124,9 +124,9 @@ impl Ahead {
         let (empty, empty_rx) = sync_channel::<Batch>(IN_FLIGHT + 2);
         // At most one forecast per `1 / rate` of plant time, so a batch holds at most this many
         // (one more for the rounding): allocated here, not while running.
-        let per_batch = predictor.as_ref().map_or(0, |p| {
-            (BATCH as f64 * period_ns as f64 * 1e-9 * p.rate_hz).ceil() as usize + 1
-        });
+        let per_batch = predictor
+            .as_ref()
+            .map_or(0, |p| (BATCH as f64 * period_ns as f64 * 1e-9 * p.rate_hz).ceil() as usize + 1);
         for _ in 0..IN_FLIGHT + 2 {
             empty.send(Batch::new(per_batch)).map_err(|e| e.to_string())?;
         }

@@ -192,7 +192,9 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
     let lossy = |r: &Value| {
         r["ipc"].as_array().is_some_and(|ipc| {
             ipc.iter().any(|x| {
-                ["bus", "raw"].iter().any(|p| num(&x[p], "/timeouts") > 0.1 * num(&x[p], "/round_trip_us/count"))
+                ["bus", "raw"]
+                    .iter()
+                    .any(|p| num(&x[p], "/timeouts") > 0.1 * num(&x[p], "/round_trip_us/count"))
             })
         })
     };

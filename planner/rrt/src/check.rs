@@ -347,4 +347,3 @@ fn bounding_sphere(caps: &[PosedCapsule]) -> ([f64; 3], f64) {
         .fold(0.0, f64::max);
     (c, r)
 }
-

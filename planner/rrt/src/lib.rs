@@ -23,7 +23,10 @@ pub mod world;
 
 pub use check::{Check, Checker};
 pub use replan::{
-    check_message, message_speed_peaks, CycleClock, Decision, Fallbacks, ReplanConfig, ReplanStats, Replanner, Summary, TrackerView,
+    check_message, message_speed_peaks, CycleClock, Decision, Fallbacks, ReplanConfig, ReplanStats,
+    Replanner, Summary, TrackerView,
 };
-pub use rrt::{Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_DT, DODGE_GAIN_M, DODGE_TIME_GAIN_S};
+pub use rrt::{
+    Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_DT, DODGE_GAIN_M, DODGE_TIME_GAIN_S,
+};
 pub use world::{After, Gaps, TimedPose, WorldError, WorldInTime};

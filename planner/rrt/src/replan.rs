@@ -674,8 +674,15 @@ impl Replanner {
         let deadline = self.deadline_ns(c_start);
         self.planner.debug = self.debug && self.stats.cycles % 20 == 3;
         let keep_going = || clock() < deadline;
-        let plan =
-            self.planner.plan_to_beat(&req, &self.world, before, self.cfg.iterations, keep_going, self.next_id, out);
+        let plan = self.planner.plan_to_beat(
+            &req,
+            &self.world,
+            before,
+            self.cfg.iterations,
+            keep_going,
+            self.next_id,
+            out,
+        );
         self.last_plan = self.planner.stats;
         self.stats.planner_iterations += self.planner.stats.iterations as u64;
         st.iterations = self.planner.stats.iterations;

@@ -257,7 +257,10 @@ impl Planner {
         // From rest the motion takes at least its slowest joint's time-optimal bound: a late
         // edge is known before its motion is even computed.
         let bound = self.arrival_bound();
-        if bound.is_finite() && !(from == ROOT && self.root_moving) && n.t + w + self.least_time(&n.q, q) >= bound {
+        if bound.is_finite()
+            && !(from == ROOT && self.root_moving)
+            && n.t + w + self.least_time(&n.q, q) >= bound
+        {
             return Edge::Late;
         }
         let st = self.node_state(from);

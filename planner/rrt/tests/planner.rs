@@ -604,7 +604,13 @@ fn a_fast_track_far_away_does_not_shorten_the_samples_near_a_slow_one() {
     let mut w = moving(DebrisShape::capsule(0.3, 0.01), p0, v, 0.0, 4.0, 0.0);
     let ball_at = [link.centre[0], link.centre[1], link.a[2].max(link.b[2]) + link.r + 0.2 + 0.1];
     let ball: Vec<TimedPose> = (0..=40)
-        .map(|k| TimedPose { t: 0.1 * k as f64, p: ball_at, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 })
+        .map(|k| TimedPose {
+            t: 0.1 * k as f64,
+            p: ball_at,
+            q: [1.0, 0.0, 0.0, 0.0],
+            sigma: 0.0,
+            sigma_pos: 0.0,
+        })
         .collect();
     w.push_track(2, DebrisShape::sphere(0.1), &ball, After::Hold).unwrap();
     w.set_margin(0.0);
@@ -660,7 +666,8 @@ fn message_speed_peaks_bound_the_sampled_joint_speeds() {
     let mut out = <Trajectory as Zeroed>::zeroed();
     planner().plan(&req, &w, 2000, || true, 2, &mut out).expect("a plan");
     let d = out.duration_s;
-    for (a, b) in [(0.0, d), (0.1 * d, 0.3 * d), (0.5 * d, 0.52 * d), (0.9 * d, d + 3.0), (d + 1.0, d + 2.0)] {
+    for (a, b) in [(0.0, d), (0.1 * d, 0.3 * d), (0.5 * d, 0.52 * d), (0.9 * d, d + 3.0), (d + 1.0, d + 2.0)]
+    {
         let peaks = message_speed_peaks(&out, a, b);
         let mut seen = [0.0f64; NJ];
         for k in 0..=2000 {
@@ -671,7 +678,10 @@ fn message_speed_peaks_bound_the_sampled_joint_speeds() {
         }
         for j in 0..NJ {
             assert!(peaks[j] >= seen[j] - 1e-12, "[{a}, {b}] joint {j}: {} < {}", peaks[j], seen[j]);
-            assert!(peaks[j] <= seen[j] + limits().a_max[j] * (b - a) / 2000.0 + 1e-9, "[{a}, {b}] joint {j}");
+            assert!(
+                peaks[j] <= seen[j] + limits().a_max[j] * (b - a) / 2000.0 + 1e-9,
+                "[{a}, {b}] joint {j}"
+            );
         }
     }
 }
@@ -704,7 +714,8 @@ fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
     assert_eq!(plan.reach, Reach::Escape);
     // Measured every millisecond: when the dodge and staying first go deeper than the depth.
     let each = dodge_and_stay_each_ms(&w, &out, t0);
-    let first = |f: fn(&(f64, f64, f64)) -> f64| each.iter().find(|x| f(x) < -depth).map_or(f64::INFINITY, |x| x.0);
+    let first =
+        |f: fn(&(f64, f64, f64)) -> f64| each.iter().find(|x| f(x) < -depth).map_or(f64::INFINITY, |x| x.0);
     let (moved, stay) = (first(|x| x.1), first(|x| x.2));
     assert!(moved.is_finite() && stay.is_finite(), "set-up: both go too deep ({moved}, {stay})");
     assert!(moved >= stay + DODGE_TIME_GAIN_S - DODGE_DT, "dodge deep at {moved:.3}, staying at {stay:.3}");

@@ -232,7 +232,8 @@ fn speed_peaks_bound_and_meet_the_sampled_speeds() {
         };
         let target = KinState::rest(std::array::from_fn(|_| r(&mut rng, 2.0)));
         let sync = if case % 2 == 0 { Sync::Phase } else { Sync::Time };
-        let Ok(tr) = Trajectory::calculate(&cur, &target, &lim, &Options { sync, ..Options::default() }) else {
+        let Ok(tr) = Trajectory::calculate(&cur, &target, &lim, &Options { sync, ..Options::default() })
+        else {
             continue;
         };
         let peaks = tr.speed_peaks();
