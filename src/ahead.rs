@@ -213,10 +213,7 @@ fn run(
             let mut written = false;
             let _ = side.drain_observations::<()>(&mut frame, |f| {
                 if let Some(p) = predictor.as_mut() {
-                    let read = p.read(now_ns, next_cycle);
-                    let c = p.core.observe_then_forecast_if(f, &p.lim, p.rate_hz, &mut p.forecast, read);
-                    written |= matches!(c, Cadence::Written(n) if n > 0);
-                    p.count(c);
+                    written |= matches!(p.feed(f, now_ns, next_cycle), Cadence::Written(n) if n > 0);
                 }
                 Ok(())
             });

@@ -119,7 +119,7 @@ pub struct PredictorLoop {
     pub tracks: u32,
     /// A forecast newer than the planner's last cycle.
     pub fresh: bool,
-    pub(crate) lim: ContractLimits,
+    lim: ContractLimits,
     pub(crate) rate_hz: f64,
     /// Due forecasts that nobody was going to read: only their calibration was done
     /// ([`PredictorCore::observe_then_forecast_if`]).
@@ -142,11 +142,22 @@ pub struct PredictorLoop {
 impl PredictorLoop {
     /// Whether a forecast due now (`now_ns`) could be the one the planner reads at its next
     /// cycle (`None`: no planner reads forecasts).
-    pub(crate) fn read(&self, now_ns: u64, next_cycle_ns: Option<u64>) -> bool {
+    fn read(&self, now_ns: u64, next_cycle_ns: Option<u64>) -> bool {
         !self.lazy || next_cycle_ns.is_some_and(|c| c.saturating_sub(now_ns) <= self.read_window_ns)
     }
 
-    pub(crate) fn count(&mut self, c: Cadence) {
+    /// Feeds one observation frame arriving at plant time `now_ns` (the planner's next cycle at
+    /// `next_cycle_ns`): the forecast is written only if a cycle may read it
+    /// ([`PredictorLoop::read`]), and the loop's figures counted. The one frame step of the
+    /// serial lockstep and of the thread running ahead ([`crate::ahead`]).
+    pub(crate) fn feed(&mut self, f: &DebrisObservation, now_ns: u64, next_cycle_ns: Option<u64>) -> Cadence {
+        let read = self.read(now_ns, next_cycle_ns);
+        let c = self.core.observe_then_forecast_if(f, &self.lim, self.rate_hz, &mut self.forecast, read);
+        self.count(c);
+        c
+    }
+
+    fn count(&mut self, c: Cadence) {
         match c {
             Cadence::Written(n) if n > 0 => {
                 (self.forecasts, self.tracks, self.fresh, self.latest_deferred) =
@@ -453,9 +464,7 @@ impl Lockstep {
             let poses = !self.camera.as_ref().is_some_and(|c| c.feeds_predictor);
             let _ = self.sim.step::<()>(&mut self.frame, |f| {
                 if let Some(p) = pred.as_mut().filter(|_| poses) {
-                    let read = p.read(now_ns, next_cycle);
-                    let c = p.core.observe_then_forecast_if(f, &p.lim, p.rate_hz, &mut p.forecast, read);
-                    p.count(c);
+                    p.feed(f, now_ns, next_cycle);
                 }
                 Ok(())
             });
@@ -494,7 +503,8 @@ impl Lockstep {
     /// plant, tracker and planner ([`crate::ahead`]): the same run, tick for tick, in less wall
     /// time where a core is free. Only at the start of a run on the pose sensor, without a
     /// camera, the oracle or a trace, and with every state delivered afterwards (`tick(true)`);
-    /// returns whether it was done.
+    /// returns whether it was done. The debris world of `sim.debris` then stays at its start
+    /// (its contact figures and counters are kept up to date; its objects are not moved).
     pub fn run_ahead(&mut self, sc: &Scenario) -> Result<bool, String> {
         if self.sim.plant.tick() != 0
             || self.started

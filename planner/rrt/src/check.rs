@@ -240,15 +240,10 @@ impl Checker {
                 (centre, radius) = self.reach;
             }
         }
-        let (mask, _) = world.near(t0, t1c, &centre, radius + self.cap, half);
         // Per track kept: how fast its gap to the arm can close over the stretch.
         let mut closing = [0.0f64; MAX_DEBRIS];
-        let mut m = mask;
-        while m != 0 {
-            let i = m.trailing_zeros() as usize;
-            closing[i] = v_arm + world.speed_within(i, t0, t1c);
-            m &= m - 1;
-        }
+        let mask = world.near_speeds(t0, t1c, &centre, radius + self.cap, half, &mut closing);
+        closing.iter_mut().for_each(|v| *v += v_arm);
         let mut t = t0;
         loop {
             let floor = self.floor_at(t);

@@ -265,7 +265,7 @@ impl Planner {
         }
         let st = self.node_state(from);
         let Some(tr) = self.motion(&st, q) else { return Edge::Blocked };
-        if n.t + w + tr.duration() >= self.arrival_bound() {
+        if n.t + w + tr.duration() >= bound {
             return Edge::Late;
         }
         self.stats.edges_checked += 1;

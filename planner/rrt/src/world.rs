@@ -214,9 +214,26 @@ impl WorldInTime {
     /// centre and σ together move at most that speed over the window, so over the half window
     /// it stays inside that sphere grown by speed × half window.
     pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
+        let mut speeds = [0.0; MAX_DEBRIS];
+        let mask = self.near_speeds(t0, t1, centre, radius, extra, &mut speeds);
+        (mask, speeds.iter().fold(0.0, |a: f64, &b| a.max(b)))
+    }
+
+    /// [`WorldInTime::near`], with each kept track's speed over `[t0, t1]` in `speeds[i]` (0
+    /// for the others).
+    pub fn near_speeds(
+        &self,
+        t0: f64,
+        t1: f64,
+        centre: &[f64; 3],
+        radius: f64,
+        extra: f64,
+        speeds: &mut [f64; MAX_DEBRIS],
+    ) -> u64 {
         const _: () = assert!(MAX_DEBRIS <= 64);
         let (tm, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0).max(0.0));
-        let (mut mask, mut v) = (0u64, 0.0f64);
+        let mut mask = 0u64;
+        speeds.fill(0.0);
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             let (p, _, sigma, sigma_pos, _) = pose_at(tr, tm);
             let speed = speed_within(tr, t0, t1);
@@ -225,10 +242,10 @@ impl WorldInTime {
                 ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2)).sqrt();
             if !(d - r - radius > 0.0) {
                 mask |= 1 << i;
-                v = v.max(speed);
+                speeds[i] = speed;
             }
         }
-        (mask, v)
+        mask
     }
 
     /// The largest surface speed (incl. σ growth) of track `i` over `[t0, t1]`, m/s: the
