@@ -1,6 +1,6 @@
 //! The debris side run ahead: in a lockstep run on the pose sensor, the debris world, its
 //! sensor and the debris predictor do not depend on the arm (the sensor observes the debris,
-//! never the arm), so a second thread can step them ahead of the plant, tracker and planner,
+//! never the arm), so other threads can step them ahead of the plant, tracker and planner,
 //! tick for tick, and hand over what the arm's side reads of them:
 //!
 //! * every tick, the true debris as posed obstacles for the true contact check
@@ -13,15 +13,23 @@
 //! `tests/lockstep.rs::a_run_ahead_is_the_serial_run`). It needs every state delivered (the
 //! planner's cadence then depends on the stamps alone).
 //!
-//! Ticks travel in batches of [`BATCH`] through a bounded channel; batches and their forecast
-//! copies are recycled, so after warm-up nothing is allocated. Dropping the [`Ahead`] stops
-//! and joins the thread.
+//! Two stages, a thread each, as a pipeline: the world's (step, sensor, posed obstacles; it
+//! keeps the sensor's frames and the planner's next cycle per tick) and the predictor's (feeds
+//! each tick's frames as the serial lockstep does at that tick, copies the forecasts). In a
+//! dense scene the predictor's work is about twice the world's, and the arm's side about as
+//! much as both: one thread for both stages kept the arm's side waiting for it (dense 47–49×
+//! real time, 60× with the two stages; docs/architecture.md). Without a predictor the world's
+//! stage alone runs.
+//!
+//! Ticks travel in batches of [`BATCH`] through bounded channels; batches, their frames and
+//! forecast copies are recycled, so after warm-up nothing is allocated. Dropping the [`Ahead`]
+//! stops and joins the threads.
 
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 use dkrrt_collision::Obstacle;
-use dkrrt_msg::{DebrisForecast, DebrisObservation, Zeroed, MAX_DEBRIS};
+use dkrrt_msg::{DebrisForecast, DebrisObs, DebrisObservation, Zeroed, MAX_DEBRIS};
 use dkrrt_planner::predict::{Cadence, ObsCounters};
 use dkrrt_predictor::GateStats;
 use dkrrt_rrt::CycleClock;
@@ -31,9 +39,9 @@ use crate::lockstep::PredictorLoop;
 
 /// Ticks per batch.
 pub const BATCH: usize = 25;
-/// Batches the thread may run ahead by (plus the one being filled and the one being read):
-/// 0.2 s of plant time at 1 kHz, so the debris side keeps working through a long planning
-/// cycle.
+/// Batches a stage may run ahead of the next by (the pool holds two more): 0.2 s of plant
+/// time at 1 kHz, so the debris side keeps working through a long planning cycle (32 did no
+/// better in dense).
 const IN_FLIGHT: usize = 8;
 
 /// The predictor's running figures after a tick.
@@ -57,22 +65,36 @@ pub struct WorldTick {
     pub events_fired: u32,
     /// The forecast written during this tick (index into the batch's copies).
     forecast: Option<usize>,
+    /// This tick's observation frames: `frames[first..first + count]` of the batch.
+    frames_first: usize,
+    frames_count: usize,
+    /// The tick's stamp after the step and the planner's next cycle then (the predictor's
+    /// read decision).
+    now_ns: u64,
+    next_cycle: Option<u64>,
     latest_deferred: bool,
     predictor: Option<PredictorSnapshot>,
 }
 
 struct Batch {
     ticks: Vec<WorldTick>,
+    /// The observation frames the sensor sent during the batch (the world's thread to the
+    /// predictor's), packed: each frame's header and its range of `items`.
+    frames: Vec<(dkrrt_msg::Header, std::ops::Range<usize>)>,
+    items: Vec<DebrisObs>,
+    /// The frame the sensor's observations are drained into, and the predictor reads.
+    scratch: Box<DebrisObservation>,
     forecasts: Vec<Box<DebrisForecast>>,
     used: usize,
-    /// The thread's allocations so far, when the batch was filled (with the counting
-    /// allocator installed; else 0).
-    allocs: u64,
+    /// Each thread's allocations so far (the world's, the predictor's), when it handed the
+    /// batch on (with the counting allocator installed; else 0).
+    allocs: [u64; 2],
 }
 
 impl Batch {
-    /// A batch with room for `forecasts` forecast copies (more are allocated if ever needed).
-    fn new(forecasts: usize) -> Batch {
+    /// A batch with room for `frames` observation frames of `items` observations in all, and
+    /// `forecasts` forecast copies (more are allocated if ever needed).
+    fn new((frames, items): (usize, usize), forecasts: usize) -> Batch {
         let ticks = (0..BATCH)
             .map(|_| WorldTick {
                 obstacles: Vec::with_capacity(MAX_DEBRIS),
@@ -81,12 +103,24 @@ impl Batch {
                 observation_frames: 0,
                 events_fired: 0,
                 forecast: None,
+                frames_first: 0,
+                frames_count: 0,
+                now_ns: 0,
+                next_cycle: None,
                 latest_deferred: false,
                 predictor: None,
             })
             .collect();
         let forecasts = (0..forecasts).map(|_| Box::new(<DebrisForecast as Zeroed>::zeroed())).collect();
-        Batch { ticks, forecasts, used: 0, allocs: 0 }
+        Batch {
+            ticks,
+            frames: Vec::with_capacity(frames),
+            items: Vec::with_capacity(items),
+            scratch: Box::new(<DebrisObservation as Zeroed>::zeroed()),
+            forecasts,
+            used: 0,
+            allocs: [0; 2],
+        }
     }
 }
 
@@ -95,7 +129,7 @@ impl Batch {
 pub struct Ahead {
     full: Option<Receiver<Batch>>,
     empty: Option<SyncSender<Batch>>,
-    thread: Option<JoinHandle<()>>,
+    threads: Vec<JoinHandle<()>>,
     cur: Option<Batch>,
     pos: usize,
     /// The newest forecast written, and whether the planner has not read it yet.
@@ -106,12 +140,23 @@ pub struct Ahead {
     pub stale_reads: u64,
     /// The predictor's figures after the last tick read (`None`: no predictor).
     pub predictor: Option<PredictorSnapshot>,
-    /// The thread's allocations as of the last batch read (allocation tests).
+    /// The threads' allocations as of the last batch read (allocation tests).
     pub thread_allocs: u64,
 }
 
+/// Frames and observations a batch has room for from the start: the sensor samples at most
+/// 100 times a second (checked at start-up, [`dkrrt_debris::Sensor::new`]) at most
+/// [`dkrrt_debris::MAX_DEBRIS`] objects (fragments included); a latency jitter releases a
+/// sample's observations over several ticks (a frame each), and may release two samples' in
+/// one tick.
+fn room_per_batch(period_ns: u64) -> (usize, usize) {
+    let samples = (BATCH as f64 * period_ns as f64 * 1e-9 * 100.0).ceil() as usize + 2;
+    let per_tick = 2 * dkrrt_debris::MAX_DEBRIS.div_ceil(MAX_DEBRIS);
+    (BATCH * per_tick, samples * dkrrt_debris::MAX_DEBRIS)
+}
+
 impl Ahead {
-    /// Starts the thread with a debris side fresh from the scenario (at plant time 0), the
+    /// Starts the threads with a debris side fresh from the scenario (at plant time 0), the
     /// predictor (if any), the planner's cadence (`None`: no planner reads forecasts) and the
     /// tick period.
     pub fn start(
@@ -127,17 +172,38 @@ impl Ahead {
         let per_batch = predictor
             .as_ref()
             .map_or(0, |p| (BATCH as f64 * period_ns as f64 * 1e-9 * p.rate_hz).ceil() as usize + 1);
+        let room = if predictor.is_some() { room_per_batch(period_ns) } else { (0, 0) };
         for _ in 0..IN_FLIGHT + 2 {
-            empty.send(Batch::new(per_batch)).map_err(|e| e.to_string())?;
+            empty.send(Batch::new(room, per_batch)).map_err(|e| e.to_string())?;
         }
-        let thread = std::thread::Builder::new()
-            .name("debris-ahead".into())
-            .spawn(move || run(side, predictor, cadence, period_ns, full_tx, empty_rx))
-            .map_err(|e| format!("lockstep: the debris thread: {e}"))?;
+        let spawn = |name: &str, f: Box<dyn FnOnce() + Send>| {
+            std::thread::Builder::new()
+                .name(name.into())
+                .spawn(f)
+                .map_err(|e| format!("lockstep: the {name} thread: {e}"))
+        };
+        // With a predictor, two stages: the world (step, sensor, posed obstacles) hands each
+        // batch to the predictor, which hands it to the arm's side.
+        let threads = match predictor {
+            Some(p) => {
+                let (mid_tx, mid_rx) = sync_channel::<Batch>(IN_FLIGHT);
+                vec![
+                    spawn(
+                        "debris-world",
+                        Box::new(move || world(side, cadence, period_ns, true, mid_tx, empty_rx)),
+                    )?,
+                    spawn("debris-predict", Box::new(move || predict(p, mid_rx, full_tx)))?,
+                ]
+            }
+            None => vec![spawn(
+                "debris-world",
+                Box::new(move || world(side, None, period_ns, false, full_tx, empty_rx)),
+            )?],
+        };
         Ok(Ahead {
             full: Some(full),
             empty: Some(empty),
-            thread: Some(thread),
+            threads,
             cur: None,
             pos: BATCH,
             forecast: Box::new(<DebrisForecast as Zeroed>::zeroed()),
@@ -149,7 +215,7 @@ impl Ahead {
         })
     }
 
-    /// The next tick (blocking until the thread has stepped it); its forecast, if one was
+    /// The next tick (blocking until the threads have stepped it); its forecast, if one was
     /// written, becomes the fresh one.
     pub fn next_tick(&mut self) -> &WorldTick {
         if self.pos >= BATCH {
@@ -161,7 +227,7 @@ impl Ahead {
             self.pos = 0;
         }
         let b = self.cur.as_ref().expect("a batch");
-        self.thread_allocs = b.allocs;
+        self.thread_allocs = b.allocs[0] + b.allocs[1];
         let w = &b.ticks[self.pos];
         self.pos += 1;
         if let Some(i) = w.forecast {
@@ -176,70 +242,98 @@ impl Ahead {
 
 impl Drop for Ahead {
     fn drop(&mut self) {
-        // Closing both channels ends the thread wherever it waits.
+        // Closing both ends ends the threads wherever they wait (a stage whose next stage is
+        // gone returns; the world's stage returns when no empty batch can come).
         self.full.take();
         self.empty.take();
-        if let Some(t) = self.thread.take() {
+        for t in self.threads.drain(..) {
             let _ = t.join();
         }
     }
 }
 
-fn run(
+/// The world's stage: steps the debris side tick by tick, poses the obstacles and, with
+/// `frames`, keeps the sensor's frames and the planner's cadence for the predictor's stage.
+fn world(
     mut side: DebrisSide,
-    mut predictor: Option<PredictorLoop>,
     mut cadence: Option<CycleClock>,
     period_ns: u64,
-    full: SyncSender<Batch>,
+    frames: bool,
+    out: SyncSender<Batch>,
     empty: Receiver<Batch>,
 ) {
     let dt = period_ns as f64 * 1e-9;
-    let mut frame = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut tick: u64 = 0;
     while let Ok(mut b) = empty.recv() {
-        b.used = 0;
+        (b.frames.clear(), b.items.clear());
         for w in b.ticks.iter_mut() {
             // The planner's cycle at this tick's stamp comes before the sim's step, as in
             // `Lockstep::tick`.
             let stamp = tick * period_ns;
-            let next_cycle = cadence.as_mut().map(|c| {
+            w.next_cycle = cadence.as_mut().map(|c| {
                 c.due(stamp);
                 c.next_ns
             });
-            let now_ns = stamp + period_ns;
+            w.now_ns = stamp + period_ns;
             side.step(dt);
             side.obstacles_into(&mut w.obstacles);
             w.t = side.world().time();
-            let mut written = false;
-            let _ = side.drain_observations::<()>(&mut frame, |f| {
-                if let Some(p) = predictor.as_mut() {
-                    written |= matches!(p.feed(f, now_ns, next_cycle), Cadence::Written(n) if n > 0);
+            w.frames_first = b.frames.len();
+            let _ = side.drain_observations::<()>(&mut b.scratch, |f| {
+                if frames {
+                    let first = b.items.len();
+                    b.items.extend_from_slice(&f.items[..(f.count as usize).min(MAX_DEBRIS)]);
+                    b.frames.push((f.header, first..b.items.len()));
                 }
                 Ok(())
             });
-            w.forecast = None;
-            if let (true, Some(p)) = (written, predictor.as_ref()) {
-                if b.used == b.forecasts.len() {
-                    b.forecasts.push(Box::new(<DebrisForecast as Zeroed>::zeroed()));
-                }
-                *b.forecasts[b.used] = *p.forecast;
-                w.forecast = Some(b.used);
-                b.used += 1;
-            }
+            w.frames_count = b.frames.len() - w.frames_first;
             (w.observations, w.observation_frames, w.events_fired) =
                 (side.stats.observations, side.stats.observation_frames, side.stats.events_fired);
-            w.latest_deferred = predictor.as_ref().is_some_and(|p| p.latest_deferred);
-            w.predictor = predictor.as_ref().map(|p| PredictorSnapshot {
+            w.forecast = None;
+            w.latest_deferred = false;
+            w.predictor = None;
+            tick += 1;
+        }
+        b.allocs[0] = dkrrt_rt::alloc_count::AllocStats::now().allocs;
+        if out.send(b).is_err() {
+            return;
+        }
+    }
+}
+
+/// The predictor's stage: feeds each tick's frames, as the serial lockstep does at that tick,
+/// and keeps a copy of every forecast written.
+fn predict(mut p: PredictorLoop, input: Receiver<Batch>, out: SyncSender<Batch>) {
+    while let Ok(mut b) = input.recv() {
+        b.used = 0;
+        let Batch { ticks, frames, items, scratch, forecasts, used, .. } = &mut b;
+        for w in ticks.iter_mut() {
+            let mut written = false;
+            for (header, range) in &frames[w.frames_first..w.frames_first + w.frames_count] {
+                (scratch.header, scratch.count) = (*header, range.len() as u32);
+                scratch.items[..range.len()].copy_from_slice(&items[range.clone()]);
+                written |= matches!(p.feed(scratch, w.now_ns, w.next_cycle), Cadence::Written(n) if n > 0);
+            }
+            if written {
+                if *used == forecasts.len() {
+                    forecasts.push(Box::new(<DebrisForecast as Zeroed>::zeroed()));
+                }
+                *forecasts[*used] = *p.forecast;
+                w.forecast = Some(*used);
+                *used += 1;
+            }
+            w.latest_deferred = p.latest_deferred;
+            w.predictor = Some(PredictorSnapshot {
                 forecasts: p.forecasts,
                 tracks: p.tracks,
                 deferred: p.deferred,
                 counters: p.core.counters,
                 gate: *p.core.gate(),
             });
-            tick += 1;
         }
-        b.allocs = dkrrt_rt::alloc_count::AllocStats::now().allocs;
-        if full.send(b).is_err() {
+        b.allocs[1] = dkrrt_rt::alloc_count::AllocStats::now().allocs;
+        if out.send(b).is_err() {
             return;
         }
     }
