@@ -21,11 +21,15 @@
 //! real time, 60× with the two stages; docs/architecture.md). Without a predictor the world's
 //! stage alone runs.
 //!
-//! Ticks travel in batches of [`BATCH`] through bounded channels; batches, their frames and
-//! forecast copies are recycled, so after warm-up nothing is allocated. Dropping the [`Ahead`]
-//! stops and joins the threads.
+//! Ticks travel in batches of [`BATCH`] through queues between the threads ([`Pipe`]: a
+//! mutex, a condition variable and room for every batch, so handing a batch over never
+//! allocates, where `std::sync::mpsc` allocates the first time a thread blocks on a channel,
+//! at a moment that depends on the timing); batches, their frames and forecast copies are
+//! recycled, so after warm-up nothing is allocated. Dropping the [`Ahead`] stops and joins the
+//! threads.
 
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::collections::VecDeque;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 
 use dkrrt_collision::Obstacle;
@@ -39,9 +43,9 @@ use crate::lockstep::PredictorLoop;
 
 /// Ticks per batch.
 pub const BATCH: usize = 25;
-/// Batches a stage may run ahead of the next by (the pool holds two more): 0.2 s of plant
-/// time at 1 kHz, so the debris side keeps working through a long planning cycle (32 did no
-/// better in dense).
+/// Batches the debris side may run ahead by (the pool holds two more, for the one being
+/// filled and the one being read): 0.2 s of plant time at 1 kHz, so it keeps working through
+/// a long planning cycle (32 did no better in dense).
 const IN_FLIGHT: usize = 8;
 
 /// The predictor's running figures after a tick.
@@ -124,11 +128,70 @@ impl Batch {
     }
 }
 
+/// A queue of batches from one thread to another, with room for every batch there is (no
+/// allocation after [`Pipe::new`]). Closed, it hands out nothing more and takes nothing.
+struct Pipe {
+    q: Mutex<(VecDeque<Batch>, bool)>,
+    ready: Condvar,
+}
+
+impl Pipe {
+    fn new(room: usize) -> Arc<Pipe> {
+        Arc::new(Pipe { q: Mutex::new((VecDeque::with_capacity(room), false)), ready: Condvar::new() })
+    }
+
+    fn lock(&self) -> MutexGuard<'_, (VecDeque<Batch>, bool)> {
+        self.q.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Hands `b` on; `false` when closed.
+    fn send(&self, b: Batch) -> bool {
+        let mut g = self.lock();
+        if g.1 {
+            return false;
+        }
+        g.0.push_back(b);
+        drop(g);
+        self.ready.notify_one();
+        true
+    }
+
+    /// The next batch, waiting for it; `None` when closed.
+    fn recv(&self) -> Option<Batch> {
+        let mut g = self.lock();
+        loop {
+            if g.1 {
+                return None;
+            }
+            if let Some(b) = g.0.pop_front() {
+                return Some(b);
+            }
+            g = self.ready.wait(g).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    fn close(&self) {
+        self.lock().1 = true;
+        self.ready.notify_all();
+    }
+}
+
+/// Closes its pipes when dropped: when a stage ends, returning or panicking, the stages
+/// waiting on it stop too (and the arm's side reports it).
+struct Closer(Vec<Arc<Pipe>>);
+
+impl Drop for Closer {
+    fn drop(&mut self) {
+        self.0.iter().for_each(|p| p.close());
+    }
+}
+
 /// The arm's side of a run ahead: the ticks in order, and the predictor's output as the
 /// planner reads it.
 pub struct Ahead {
-    full: Option<Receiver<Batch>>,
-    empty: Option<SyncSender<Batch>>,
+    full: Arc<Pipe>,
+    empty: Arc<Pipe>,
+    mid: Arc<Pipe>,
     threads: Vec<JoinHandle<()>>,
     cur: Option<Batch>,
     pos: usize,
@@ -165,16 +228,16 @@ impl Ahead {
         cadence: Option<CycleClock>,
         period_ns: u64,
     ) -> Result<Ahead, String> {
-        let (full_tx, full) = sync_channel::<Batch>(IN_FLIGHT);
-        let (empty, empty_rx) = sync_channel::<Batch>(IN_FLIGHT + 2);
+        let pool = IN_FLIGHT + 2;
+        let (full, empty, mid) = (Pipe::new(pool), Pipe::new(pool), Pipe::new(pool));
         // At most one forecast per `1 / rate` of plant time, so a batch holds at most this many
         // (one more for the rounding): allocated here, not while running.
         let per_batch = predictor
             .as_ref()
             .map_or(0, |p| (BATCH as f64 * period_ns as f64 * 1e-9 * p.rate_hz).ceil() as usize + 1);
         let room = if predictor.is_some() { room_per_batch(period_ns) } else { (0, 0) };
-        for _ in 0..IN_FLIGHT + 2 {
-            empty.send(Batch::new(room, per_batch)).map_err(|e| e.to_string())?;
+        for _ in 0..pool {
+            empty.send(Batch::new(room, per_batch));
         }
         let spawn = |name: &str, f: Box<dyn FnOnce() + Send>| {
             std::thread::Builder::new()
@@ -182,27 +245,38 @@ impl Ahead {
                 .spawn(f)
                 .map_err(|e| format!("lockstep: the {name} thread: {e}"))
         };
+        let all = || Closer(vec![full.clone(), empty.clone(), mid.clone()]);
         // With a predictor, two stages: the world (step, sensor, posed obstacles) hands each
-        // batch to the predictor, which hands it to the arm's side.
-        let threads = match predictor {
-            Some(p) => {
-                let (mid_tx, mid_rx) = sync_channel::<Batch>(IN_FLIGHT);
-                vec![
-                    spawn(
+        // batch to the predictor, which hands it to the arm's side. A stage that ends closes
+        // every pipe.
+        let threads = (|| -> Result<Vec<JoinHandle<()>>, String> {
+            Ok(match predictor {
+                Some(p) => {
+                    let (c1, c2) = (all(), all());
+                    let (e, m1, m2, f) = (empty.clone(), mid.clone(), mid.clone(), full.clone());
+                    vec![
+                        spawn(
+                            "debris-world",
+                            Box::new(move || world(side, cadence, period_ns, true, &m1, &e, c1)),
+                        )?,
+                        spawn("debris-predict", Box::new(move || predict(p, &m2, &f, c2)))?,
+                    ]
+                }
+                None => {
+                    let (c, e, f) = (all(), empty.clone(), full.clone());
+                    vec![spawn(
                         "debris-world",
-                        Box::new(move || world(side, cadence, period_ns, true, mid_tx, empty_rx)),
-                    )?,
-                    spawn("debris-predict", Box::new(move || predict(p, mid_rx, full_tx)))?,
-                ]
-            }
-            None => vec![spawn(
-                "debris-world",
-                Box::new(move || world(side, None, period_ns, false, full_tx, empty_rx)),
-            )?],
-        };
+                        Box::new(move || world(side, None, period_ns, false, &f, &e, c)),
+                    )?]
+                }
+            })
+        })();
+        // A thread that could not start: the others stop at the closed pipes.
+        let threads = threads.inspect_err(|_| drop(all()))?;
         Ok(Ahead {
-            full: Some(full),
-            empty: Some(empty),
+            full,
+            empty,
+            mid,
             threads,
             cur: None,
             pos: BATCH,
@@ -219,11 +293,11 @@ impl Ahead {
     /// written, becomes the fresh one.
     pub fn next_tick(&mut self) -> &WorldTick {
         if self.pos >= BATCH {
-            if let (Some(b), Some(empty)) = (self.cur.take(), self.empty.as_ref()) {
-                let _ = empty.send(b);
+            if let Some(b) = self.cur.take() {
+                self.empty.send(b);
             }
-            let full = self.full.as_ref().expect("running");
-            self.cur = Some(full.recv().unwrap_or_else(|_| panic!("lockstep: the debris thread stopped")));
+            self.cur =
+                Some(self.full.recv().unwrap_or_else(|| panic!("lockstep: the debris thread stopped")));
             self.pos = 0;
         }
         let b = self.cur.as_ref().expect("a batch");
@@ -242,10 +316,10 @@ impl Ahead {
 
 impl Drop for Ahead {
     fn drop(&mut self) {
-        // Closing both ends ends the threads wherever they wait (a stage whose next stage is
-        // gone returns; the world's stage returns when no empty batch can come).
-        self.full.take();
-        self.empty.take();
+        // Closed pipes end the threads wherever they wait.
+        for p in [&self.full, &self.empty, &self.mid] {
+            p.close();
+        }
         for t in self.threads.drain(..) {
             let _ = t.join();
         }
@@ -259,12 +333,13 @@ fn world(
     mut cadence: Option<CycleClock>,
     period_ns: u64,
     frames: bool,
-    out: SyncSender<Batch>,
-    empty: Receiver<Batch>,
+    out: &Pipe,
+    empty: &Pipe,
+    _closer: Closer,
 ) {
     let dt = period_ns as f64 * 1e-9;
     let mut tick: u64 = 0;
-    while let Ok(mut b) = empty.recv() {
+    while let Some(mut b) = empty.recv() {
         (b.frames.clear(), b.items.clear());
         for w in b.ticks.iter_mut() {
             // The planner's cycle at this tick's stamp comes before the sim's step, as in
@@ -296,7 +371,7 @@ fn world(
             tick += 1;
         }
         b.allocs[0] = dkrrt_rt::alloc_count::AllocStats::now().allocs;
-        if out.send(b).is_err() {
+        if !out.send(b) {
             return;
         }
     }
@@ -304,8 +379,8 @@ fn world(
 
 /// The predictor's stage: feeds each tick's frames, as the serial lockstep does at that tick,
 /// and keeps a copy of every forecast written.
-fn predict(mut p: PredictorLoop, input: Receiver<Batch>, out: SyncSender<Batch>) {
-    while let Ok(mut b) = input.recv() {
+fn predict(mut p: PredictorLoop, input: &Pipe, out: &Pipe, _closer: Closer) {
+    while let Some(mut b) = input.recv() {
         b.used = 0;
         let Batch { ticks, frames, items, scratch, forecasts, used, .. } = &mut b;
         for w in ticks.iter_mut() {
@@ -333,7 +408,7 @@ fn predict(mut p: PredictorLoop, input: Receiver<Batch>, out: SyncSender<Batch>)
             });
         }
         b.allocs[1] = dkrrt_rt::alloc_count::AllocStats::now().allocs;
-        if out.send(b).is_err() {
+        if !out.send(b) {
             return;
         }
     }
