@@ -9,7 +9,7 @@
 //!
 //! [`PredictorCore::observe_frame`] and [`PredictorCore::forecast_into`] allocate nothing.
 
-use dkrrt_collision::bounds::{attitude_channel, surface_sigma, AttitudeChannel};
+use dkrrt_collision::bounds::surface_sigma;
 use dkrrt_collision::interpolate_pose;
 use dkrrt_config::Scenario;
 use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
@@ -18,7 +18,6 @@ use dkrrt_msg::{
     ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
     DEBRIS_PARTIAL, FORECAST_STEPS, MAX_DEBRIS,
 };
-use dkrrt_predictor::axis::AxisPrecession;
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
 use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
 use dkrrt_predictor::{
@@ -495,7 +494,6 @@ impl PredictorCore {
         for i in 0..n {
             let id = self.buf.id(i);
             let (radius, shape) = self.shape(id);
-            let channel = attitude_channel(&shape);
             let tr = &mut msg.tracks[i];
             tr.id = id;
             tr.bounding_radius = radius;
@@ -521,13 +519,12 @@ impl PredictorCore {
                 let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
                 let pa = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
                 let pc = [c[0] - b[0], c[1] - b[1], c[2] - b[2]];
-                let (mut qa, mut qc) = (self.buf.attitude(i, j), self.buf.attitude(i, j + 1));
-                if channel == AttitudeChannel::Axis {
-                    // A rod: its axis from the precession forecast (the spin about it is
-                    // irrelevant to the shape and poorly predictable).
-                    qa = AxisPrecession::align(&[a[6], a[7], a[8], a[9]], &self.buf.axis(i, j));
-                    qc = AxisPrecession::align(&[c[6], c[7], c[8], c[9]], &self.buf.axis(i, j + 1));
-                }
+                // A rod: its axis from the precession forecast (the spin about it is irrelevant
+                // to the shape and poorly predictable).
+                let (qa, qc) = (
+                    self.buf.published_attitude(i, j, &shape),
+                    self.buf.published_attitude(i, j + 1, &shape),
+                );
                 // The same interpolation the planner reads the forecast with.
                 let (p, q) = interpolate_pose(&pa, &qa, &pc, &qc, f);
                 let kk = (j + 1).min(h);

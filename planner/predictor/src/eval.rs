@@ -24,7 +24,7 @@ use dkrrt_debris::{
 };
 use dkrrt_koopman::debris_state::N;
 use dkrrt_koopman::FitError;
-use dkrrt_msg::{DebrisShape, ShapeKind};
+use dkrrt_msg::DebrisShape;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
@@ -77,6 +77,11 @@ pub struct StudyRow {
     /// Median attitude error modulo what the true shape cannot show ([`symmetric_angle`]: a
     /// rod's spin and end-for-end turn, a box's half turns, a ball's attitude) [rad].
     pub att_sym_err_rad: f64,
+    /// The same for the attitude the predictor publishes and the planner reads
+    /// ([`ForecastBuffer::published_attitude`]: the online methods' physical channels, a
+    /// rod's precessing axis, a box's torque-free forecast where they are calibrated tighter
+    /// than the model) [rad].
+    pub pub_att_err_rad: f64,
     /// Number of (instant, track) samples.
     pub n: usize,
     /// Calibration: share of samples whose true shape lies inside the predicted shape inflated
@@ -354,6 +359,9 @@ pub struct Errors {
     pub att: Vec<Vec<f64>>,
     /// `att_sym[j]`: [`symmetric_angle`]s at `horizons[j]` [rad].
     pub att_sym: Vec<Vec<f64>>,
+    /// `att_pub[j]`: [`symmetric_angle`]s of the published attitude
+    /// ([`ForecastBuffer::published_attitude`]) at `horizons[j]` [rad].
+    pub att_pub: Vec<Vec<f64>>,
     /// `surface[j]`: (published bound, surface error) at `horizons[j]` [m] (see
     /// [`StudyRow::contained`]).
     pub surface: Vec<Vec<(f64, f64)>>,
@@ -375,14 +383,9 @@ pub fn surface_sample(
     true_radius: f64,
     truth: &[f64; N],
 ) -> (f64, f64) {
-    use dkrrt_collision::bounds::{
-        attitude_channel, shape_excess, sphere_is_tighter, surface_sigma, AttitudeChannel,
-    };
+    use dkrrt_collision::bounds::{shape_excess, sphere_is_tighter, surface_sigma};
     let x = buf.state(j, k);
-    let mut q = buf.attitude(j, k);
-    if attitude_channel(shape) == AttitudeChannel::Axis {
-        q = crate::axis::AxisPrecession::align(&[x[6], x[7], x[8], x[9]], &buf.axis(j, k));
-    }
+    let q = buf.published_attitude(j, k, shape);
     let p = [x[0], x[1], x[2]];
     let pos = buf.pos_radius(j, k);
     let sigma = surface_sigma(shape, radius, pos, buf.attitude_radius(j, k), buf.axis_radius(j, k));
@@ -411,6 +414,7 @@ pub fn evaluate(
     out.pos.resize(horizons.len(), Vec::new());
     out.att.resize(horizons.len(), Vec::new());
     out.att_sym.resize(horizons.len(), Vec::new());
+    out.att_pub.resize(horizons.len(), Vec::new());
     out.surface.resize(horizons.len(), Vec::new());
     let mut next_eval = warmup;
     // The latest shape estimate per id (estimated shapes only).
@@ -457,6 +461,8 @@ pub fn evaluate(
                 if let Some((_, shape, r)) = rec.shapes.iter().find(|s| s.0 == buf.id(j)) {
                     out.att_sym[hj].push(symmetric_angle(&x[6..10], &truth[6..10], shape));
                     let (est, er) = published(buf.id(j)).unwrap_or((DebrisShape::default(), *r));
+                    let q = buf.published_attitude(j, k, &est);
+                    out.att_pub[hj].push(symmetric_angle(&q, &truth[6..10], shape));
                     out.surface[hj].push(surface_sample(&buf, j, k, &est, er, shape, *r, &truth));
                 }
             }
@@ -464,51 +470,7 @@ pub fn evaluate(
     }
 }
 
-/// The angle between attitudes `q` and `truth` (w, x, y, z) modulo the symmetry of `shape`
-/// (its body frame): 0 for a sphere; for a capsule the angle between the body z axes,
-/// sign-free; for a box centred on the body origin the least angle over its half turns
-/// about the body axes, and its quarter turns about an axis whose other two half extents agree
-/// within 1 %; otherwise (unknown, or an off-centre box) the full angle. No camera can tell
-/// these attitudes apart, so a method is measured here on what it can observe.
-pub fn symmetric_angle(q: &[f64], truth: &[f64], shape: &DebrisShape) -> f64 {
-    use dkrrt_collision::pose::quat_mul;
-    let t = [truth[0], truth[1], truth[2], truth[3]];
-    match ShapeKind::from_u32(shape.kind) {
-        Some(ShapeKind::Sphere) => 0.0,
-        Some(ShapeKind::Capsule) => {
-            let z = |q: &[f64]| {
-                let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-                let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
-                [2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2, 1.0 - 2.0 * (x * x + y * y) / n2]
-            };
-            let (a, b) = (z(q), z(&t));
-            (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos()
-        }
-        Some(ShapeKind::Box) if shape.offset == [0.0; 3] => {
-            let h = std::f64::consts::FRAC_1_SQRT_2;
-            let half =
-                [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
-            let d = shape.dims;
-            let same = |a: f64, b: f64| (a - b).abs() <= 0.01 * a.max(b);
-            let mut best = f64::INFINITY;
-            for quarter in [
-                Some([1.0, 0.0, 0.0, 0.0]),
-                same(d[1], d[2]).then_some([h, h, 0.0, 0.0]),
-                same(d[0], d[2]).then_some([h, 0.0, h, 0.0]),
-                same(d[0], d[1]).then_some([h, 0.0, 0.0, h]),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                for g in &half {
-                    best = best.min(quat_angle(q, &quat_mul(&quat_mul(&t, g), &quarter)));
-                }
-            }
-            best
-        }
-        _ => quat_angle(q, truth),
-    }
-}
+pub use crate::symmetry::symmetric_angle;
 
 /// Median (NaN for an empty set; NaN samples sort last).
 pub fn median(v: &mut [f64]) -> f64 {
@@ -620,6 +582,7 @@ pub fn run_study_views(
                     pos_err_m: errs.pos.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     att_err_rad: errs.att.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     att_sym_err_rad: errs.att_sym.get_mut(hj).map_or(f64::NAN, |v| median(v)),
+                    pub_att_err_rad: errs.att_pub.get_mut(hj).map_or(f64::NAN, |v| median(v)),
                     n,
                     contained,
                     bound_m,
@@ -737,9 +700,9 @@ pub fn deep_vs_edmd_text(cmp: &[DeepVsEdmd]) -> String {
 /// containment, median bound, median surface error and their ratio).
 pub fn markdown_table(rows: &[StudyRow]) -> String {
     let mut s = String::from(
-        "| scene | method | horizon [s] | median pos err [m] | median att err [rad] | median att err mod symmetry [rad] | n | contained | median bound [m] | median surface err [m] | bound / err |\n",
+        "| scene | method | horizon [s] | median pos err [m] | median att err [rad] | median att err mod symmetry [rad] | published att err mod symmetry [rad] | n | contained | median bound [m] | median surface err [m] | bound / err |\n",
     );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let mut views = String::new();
     for r in rows.iter().filter(|r| r.obs_pos_err_m.is_some() && r.horizon_s == rows[0].horizon_s) {
         views.push_str(&format!(
@@ -752,13 +715,14 @@ pub fn markdown_table(rows: &[StudyRow]) -> String {
     }
     for r in rows {
         s.push_str(&format!(
-            "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {:.2}% | {:.3} | {:.3} | {:.1} |\n",
+            "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {:.2}% | {:.3} | {:.3} | {:.1} |\n",
             r.scene,
             r.method,
             r.horizon_s,
             r.pos_err_m,
             r.att_err_rad,
             r.att_sym_err_rad,
+            r.pub_att_err_rad,
             r.n,
             100.0 * r.contained,
             r.bound_m,

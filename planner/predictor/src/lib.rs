@@ -27,6 +27,7 @@ mod kernels;
 pub mod models;
 pub mod predictor;
 pub mod recorded;
+pub mod symmetry;
 pub mod training;
 
 pub use eval::{run_study, StudyConfig, StudyRow};

@@ -7,6 +7,7 @@ use crate::calib::ForecastScore;
 use crate::euler::EulerChannel;
 use crate::filter::{propagate, quat_angle, FilterConfig, TrackFilter};
 use crate::models::{Engine, Job, Method, Models};
+use crate::symmetry::Symmetry;
 use dkrrt_debris::Observation;
 use dkrrt_koopman::debris_state::{align_quaternion, N, QUAT, RATE, ROT, TRANS};
 use dkrrt_koopman::{ConstantVelocity, ErrorBound, KoopmanModel, Lifting, Rls, RlsConfig, Rollout};
@@ -219,6 +220,8 @@ struct Track {
     last_event_t: [f64; 2],
     /// The object's size (its shape's bounding radius, m; 0: not known).
     size: f64,
+    /// The turns its shape cannot show ([`DebrisPredictor::set_shape`]).
+    symmetry: Symmetry,
     /// Model pairs in a row whose residual failed the event test, per channel.
     event_run: [u32; 2],
     events: u32,
@@ -354,6 +357,19 @@ impl ForecastBuffer {
     pub fn attitude_radius(&self, i: usize, k: usize) -> f64 {
         self.full_radius[i * self.h + k - 1]
     }
+    /// The attitude forecast `i` publishes `k` steps ahead for an object of `shape` (what the
+    /// planner reads): a rod's ([`dkrrt_collision::bounds::AttitudeChannel::Axis`]) is the
+    /// model's attitude turned onto the precession forecast's axis; any other shape's is
+    /// [`ForecastBuffer::attitude`].
+    pub fn published_attitude(&self, i: usize, k: usize, shape: &dkrrt_msg::DebrisShape) -> [f64; 4] {
+        use dkrrt_collision::bounds::{attitude_channel, AttitudeChannel};
+        if attitude_channel(shape) == AttitudeChannel::Axis {
+            let x = self.state(i, k);
+            crate::axis::AxisPrecession::align(&[x[6], x[7], x[8], x[9]], &self.axis(i, k))
+        } else {
+            self.attitude(i, k)
+        }
+    }
 }
 
 /// Online debris predictor for up to [`MAX_TRACKS`] objects (association by id).
@@ -414,6 +430,7 @@ impl DebrisPredictor {
             last_event_t: [f64::NEG_INFINITY; 2],
             event_run: [0; 2],
             size: 0.0,
+            symmetry: Symmetry::NONE,
             events: 0,
             last_residual: [f64::NAN; 2],
             axis: AxisChannel::new(),
@@ -446,6 +463,7 @@ impl DebrisPredictor {
         if let Some(s) = self.slot_of(id) {
             self.tracks[s].euler.set_inertia(crate::euler::inertia_hint(shape));
             self.tracks[s].size = shape.bounding_radius();
+            self.tracks[s].symmetry = Symmetry::of(shape);
         }
     }
 
@@ -562,6 +580,7 @@ impl DebrisPredictor {
         } else {
             tr.euler = EulerChannel::new();
             tr.size = 0.0;
+            tr.symmetry = Symmetry::NONE;
         }
         tr.score.clear();
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
@@ -614,10 +633,14 @@ impl DebrisPredictor {
             self.stats.out_of_order += 1;
             return ObserveOutcome::Rejected(RejectReason::OutOfOrder);
         }
-        // Normalised, sign-aligned measurement.
+        // Normalised measurement; of the attitudes its shape cannot tell apart (a box's half
+        // turns: a sensor that sees the shape reports any of them) the one nearest to the
+        // track's prediction, sign-aligned with it.
         let mut q = o.q;
         let nq = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         q.iter_mut().for_each(|v| *v /= nq);
+        let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
+        q = tr.symmetry.nearest(&q, &xprior[QUAT]);
         align_quaternion(&mut q, &tr.filter.x[QUAT]);
         // Physical plausibility gate against the last accepted observation.
         let dt_obs = o.t - tr.filter.t;
@@ -646,7 +669,6 @@ impl DebrisPredictor {
             return ObserveOutcome::Rejected(r);
         }
         tr.rejects = 0;
-        let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
         let mut sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
         if o.partial {
             sigma = sigma.max(cfg.partial_sigma_per_m * tr.size);

@@ -66,6 +66,7 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         pos_err_m: pos,
         att_err_rad: att,
         att_sym_err_rad: att,
+        pub_att_err_rad: att,
         n: 100,
         contained: 1.0,
         bound_m: 0.1,

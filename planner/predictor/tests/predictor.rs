@@ -483,3 +483,41 @@ fn a_partial_view_moves_the_position_loosely_and_leaves_the_attitude() {
     assert!(turned < 1e-9, "the attitude is not measured: turned {turned}");
     assert_eq!((n_whole, n_partial, manoeuvres), (0, 1, 0));
 }
+
+/// A sensor that sees only the shape (a depth camera's front end) reports a box's attitude up
+/// to its half turns, and which one can change from frame to frame. Told the shape, the
+/// predictor takes each report as the equivalent attitude nearest to its prediction: every
+/// report is accepted and the estimate follows the truth. Not told (or for a shape without
+/// that symmetry), the turned reports are impossible jumps and are rejected.
+#[test]
+fn a_box_reported_up_to_its_half_turns_is_tracked_through_them() {
+    use dkrrt_koopman::debris_state::quat_mul;
+    let half = [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+    let run = |shape: Option<dkrrt_msg::DebrisShape>| {
+        let mut pr = cv_predictor();
+        let dt = 0.05;
+        let mut worst = 0.0f64;
+        for k in 0..120 {
+            let t = k as f64 * dt;
+            let (p, q) = pose(t);
+            // Every third report turned by half about one of the body axes.
+            let reported = if k % 3 == 2 { quat_mul(&q, &half[(k / 3) % 3]) } else { q };
+            pr.observe(&obs(6, t, p, reported));
+            if let Some(s) = &shape {
+                pr.set_shape(6, s);
+            }
+            if k > 20 {
+                worst = worst.max(quat_angle(&pr.track(6).unwrap().state[6..10], &q));
+            }
+        }
+        (pr.stats().att_jump, worst)
+    };
+    let (jumps, worst) = run(Some(dkrrt_msg::DebrisShape::cuboid([0.6, 0.15, 0.05], [0.0; 3])));
+    assert_eq!(jumps, 0);
+    assert!(worst < 0.01, "the estimate follows the truth: {worst} rad");
+    let (jumps_plain, _) = run(None);
+    assert!(jumps_plain >= 30, "without the shape the turned reports are jumps: {jumps_plain}");
+    // An off-centre box has no such symmetry.
+    let (jumps_off, _) = run(Some(dkrrt_msg::DebrisShape::cuboid([0.6, 0.15, 0.05], [0.2, 0.0, 0.0])));
+    assert_eq!(jumps_off, jumps_plain);
+}
