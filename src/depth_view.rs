@@ -11,7 +11,7 @@
 use dkrrt_camera::CameraConfig;
 use dkrrt_debris::{DebrisWorld, Observation, Scene, SensorConfig};
 use dkrrt_depthpose::perception::DepthPerception;
-use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed, DEBRIS_PARTIAL};
+use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed, DEBRIS_PARTIAL, DEBRIS_RESTART};
 use dkrrt_predictor::eval::{record, EvalError, Recording};
 use dkrrt_sim::camera::{CaptureClock, Renderer, Snapshot};
 
@@ -73,6 +73,7 @@ pub fn record_depth(
                 w: [0.0; 3],
                 has_rates: false,
                 partial,
+                restart: it.flags & DEBRIS_RESTART != 0,
                 seq: capture as u32,
             });
             obs_shapes.push((it.shape, it.bounding_radius));

@@ -16,7 +16,7 @@ use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SC
 use dkrrt_depthpose::perception::DepthPerception;
 use dkrrt_msg::{
     ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
-    DEBRIS_PARTIAL, FORECAST_STEPS, MAX_DEBRIS,
+    DEBRIS_PARTIAL, DEBRIS_RESTART, FORECAST_STEPS, MAX_DEBRIS,
 };
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
 use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
@@ -328,6 +328,7 @@ impl PredictorCore {
                 w: it.w,
                 has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
                 partial: it.flags & DEBRIS_PARTIAL != 0,
+                restart: it.flags & DEBRIS_RESTART != 0,
                 seq: frame.header.seq as u32,
             };
             match self.pred.observe(&o) {

@@ -69,6 +69,7 @@ pub fn run(run: &str, sc: &Scenario, out: &Path, max_wall_s: Option<f64>) -> Res
                             w: it.w,
                             has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
                             partial: it.flags & DEBRIS_PARTIAL != 0,
+                            restart: it.flags & DEBRIS_RESTART != 0,
                             seq: f.header.seq as u32,
                         };
                         match dkrrt_predictor::recorded::write_observation(&mut w, &o) {

@@ -30,6 +30,14 @@
 //!   capture, flagged [`DEBRIS_PARTIAL`], with the attitude and shape last seen whole. The
 //!   predictor takes its position loosely and its attitude not at all, so an object that
 //!   straddles two cameras of a rig, or the edge of a single camera's view, is still tracked.
+//!   A view hidden in part behind something nearer (its outline touches a nearer object or
+//!   the arm: [`crate::PoseEstimate::occluded`]) is treated as a cut one.
+//! * **Restarts**: the largest spread seen grows as the object turns; a view whose longest
+//!   spread is over 1/[`PART`] of the longest seen before (a rod seen end-on at first, its
+//!   near end taken for its centre, then broadside) shows that the earlier reports were of
+//!   part of it. The next whole report is flagged [`DEBRIS_RESTART`]: the predictor restarts
+//!   the object's position and velocity from it instead of taking the jump for a change of
+//!   motion.
 //! * **Rigs**: an object several cameras see in one capture (frames with the same stamp) is
 //!   reported once, from the first frame that shows it whole.
 //! * **A learned axis model** ([`DepthPerception::with_model`], the visual features f_θ of
@@ -42,7 +50,8 @@
 //! Allocation-free after construction.
 
 use dkrrt_msg::{
-    DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEBRIS_PARTIAL, DEPTH_MAX_INSTANCES, MAX_DEBRIS,
+    DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEBRIS_PARTIAL, DEBRIS_RESTART,
+    DEPTH_MAX_INSTANCES, MAX_DEBRIS,
 };
 
 use dkrrt_collision::pose::{quat_mul as mul, rotation_matrix as rotation};
@@ -124,6 +133,9 @@ struct Known {
     /// Its best partial view of the current capture (and that view's pixels), reported with
     /// the next capture unless a camera shows it whole in this one.
     pending: Option<(DebrisObs, usize)>,
+    /// A view showed it larger than the reports so far: the next whole report is flagged
+    /// [`DEBRIS_RESTART`].
+    restart: bool,
 }
 
 /// Counters.
@@ -143,6 +155,8 @@ pub struct PerceptionStats {
     pub partial_reported: u64,
     /// Views the learned axis model read.
     pub learned: u64,
+    /// Reports flagged [`DEBRIS_RESTART`] (the object seen larger than in the reports before).
+    pub restarts: u64,
 }
 
 /// The front end (per-object memory and the extractor's buffers).
@@ -268,6 +282,11 @@ impl DepthPerception {
                 self.stats.repeats += 1;
                 continue;
             }
+            // Larger than every view reported so far would have let through: those showed it
+            // in part (module docs).
+            if kn.last_t_ns != u64::MAX && e.spread[0] * PART > kn.spread[0] {
+                kn.restart = true;
+            }
             for i in 0..3 {
                 kn.spread[i] = kn.spread[i].max(e.spread[i]);
             }
@@ -278,8 +297,10 @@ impl DepthPerception {
                 self.stats.partial += 1;
                 continue;
             }
-            if e.cut > 0 && (0..2).any(|i| e.spread[i] < WHOLE * kn.spread[i]) {
-                // Cut by the frame: its centre may be off by up to its size, and its axes wrong.
+            if (e.cut > 0 || e.occluded > 0) && (0..2).any(|i| e.spread[i] < WHOLE * kn.spread[i]) {
+                // Cut by the frame, or hidden in part behind something nearer (the arm, another
+                // object: its outline touches it): its centre may be off by up to its size, and
+                // its axes wrong.
                 // Another camera of the same capture may still show it whole; if none does, the
                 // cut view with the most pixels is reported with the next capture (module docs).
                 self.stats.partial += 1;
@@ -353,7 +374,9 @@ impl DepthPerception {
             let p = visible_centre(&e, &cam, classical);
             kn.shape = Some((shape, radius));
             kn.pending = None;
-            out.items[count] = item(id, 0, img.header.stamp_ns, p, kn.q, (shape, radius));
+            let flags = if std::mem::take(&mut kn.restart) { DEBRIS_RESTART } else { 0 };
+            self.stats.restarts += (flags != 0) as u64;
+            out.items[count] = item(id, flags, img.header.stamp_ns, p, kn.q, (shape, radius));
             count += 1;
         }
         out.count = count as u32;
@@ -376,6 +399,7 @@ impl DepthPerception {
             last_t_ns: u64::MAX,
             shape: None,
             pending: None,
+            restart: false,
         };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;

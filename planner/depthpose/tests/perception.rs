@@ -340,3 +340,59 @@ fn a_chunky_box_read_as_bulky_is_held_by_its_sphere() {
 fn cuboid(h: [f64; 3]) -> parry3d_f64::shape::SharedShape {
     parry3d_f64::shape::SharedShape::cuboid(h[0], h[1], h[2])
 }
+
+/// A rod seen end-on first shows its near end, which the front end takes for its centre; when
+/// it turns broadside, the view is far larger than every one before: that report is flagged
+/// `DEBRIS_RESTART` (the earlier ones showed part of it), once.
+#[test]
+fn a_rod_seen_end_on_then_broadside_restarts_its_estimate() {
+    use dkrrt_msg::{DEBRIS_PARTIAL, DEBRIS_RESTART};
+    use parry3d_f64::shape::SharedShape;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // A 2 m rod 3.5 m ahead: end-on, only its near cap shows.
+    // Body z along the line of sight (base x), then across it (base y).
+    let end_on = (7, SharedShape::capsule_z(0.9, 0.1), [3.5, 0.0, 0.0], [h, 0.0, h, 0.0], 1.0);
+    let broadside = (7, SharedShape::capsule_z(0.9, 0.1), [3.5, 0.0, 0.0], [h, -h, 0.0, 0.0], 1.0);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let mut flags = |per: &mut DepthPerception, obj: &_, t: f64| {
+        let n = per.convert(&render(std::slice::from_ref(obj), &exact(), t), &mut out);
+        out.items[..n].iter().filter(|it| it.id == 7).map(|it| it.flags).collect::<Vec<_>>()
+    };
+    assert_eq!(flags(&mut per, &end_on, 1.0), [0]);
+    assert_eq!(flags(&mut per, &end_on, 1.1), [0]);
+    assert_eq!(flags(&mut per, &broadside, 1.2), [DEBRIS_RESTART]);
+    assert_eq!(flags(&mut per, &broadside, 1.3), [0], "once");
+    assert_eq!(flags(&mut per, &end_on, 1.4), Vec::<u32>::new(), "end-on now shows it in part");
+    assert_eq!(per.stats.restarts, 1);
+    assert_eq!(DEBRIS_RESTART & DEBRIS_PARTIAL, 0);
+    // Seen broadside from the start: nothing to restart.
+    let mut fresh = DepthPerception::default();
+    assert_eq!(flags(&mut fresh, &broadside, 1.0), [0]);
+    assert_eq!(flags(&mut fresh, &broadside, 1.1), [0]);
+}
+
+/// A rod hidden in part behind a nearer object, too little for the view to count as partial by
+/// its extent alone (between `PART` and `WHOLE` of it), is treated as a cut view: held back
+/// and reported late, flagged `DEBRIS_PARTIAL`, its centre not taken as the object's.
+#[test]
+fn a_view_hidden_in_part_behind_a_nearer_object_is_a_partial_one() {
+    use dkrrt_msg::DEBRIS_PARTIAL;
+    use parry3d_f64::shape::SharedShape;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    // A 1.8 m rod along y, 4 m ahead; a panel 1 m nearer hides its top 0.25 m.
+    let rod = (7, SharedShape::capsule_z(0.9, 0.03), [4.0, 0.0, 0.0], [h, -h, 0.0, 0.0], 0.93);
+    let panel = (8, SharedShape::cuboid(0.05, 0.6, 0.6), [3.0, 1.11, 0.0], [1.0, 0.0, 0.0, 0.0], 0.85);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
+        let n = per.convert(&render(objs, &exact(), t), &mut out);
+        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
+    };
+    assert_eq!(items(&mut per, &[rod.clone()], 1.0).len(), 1);
+    assert!(items(&mut per, &[rod.clone(), panel.clone()], 1.1).is_empty(), "held back");
+    let next = items(&mut per, &[rod.clone()], 1.2);
+    assert_eq!(next.len(), 2);
+    assert_eq!((next[0].flags, next[0].t_meas_ns), (DEBRIS_PARTIAL, 1_100_000_000));
+    assert_eq!(next[1].flags, 0);
+}

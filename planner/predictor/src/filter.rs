@@ -232,6 +232,14 @@ impl TrackFilter {
         p.p00.max(0.0).sqrt()
     }
 
+    /// Forget where the object is (position variance `pos_var` per axis, m²) and open its
+    /// velocity to the manoeuvre variance: the next pose sets the position, the next few the
+    /// velocity (the poses so far were biased: [`crate::predictor`]'s restarts).
+    pub fn restart_position(&mut self, cfg: &FilterConfig, pos_var: f64) {
+        self.pos = Kf2::init(pos_var, self.pos.p11.max(cfg.maneuver_vel_sigma.powi(2)));
+        self.nis = 1.0;
+    }
+
     /// Predicted state at time `t ≥ self.t` (Clohessy–Wiltshire translation, constant body
     /// rate), without updating.
     pub fn predicted(&self, cfg: &FilterConfig, t: f64) -> [f64; N] {
@@ -244,8 +252,10 @@ impl TrackFilter {
     }
 
     /// [`TrackFilter::update`] with this pose's own position noise `pos_sigma` (m, per axis)
-    /// in place of the configured one; `q = None`: the attitude was not measured (it is only
-    /// predicted to `t`).
+    /// in place of the configured one; `q = None`: a partial view (an object cut by a camera's
+    /// frame or hidden in part): the attitude was not measured (it is only predicted to `t`),
+    /// and the position, whose centre moves with the part in view rather than with the
+    /// object, feeds no manoeuvre test (an outlier among such poses is still weighed down).
     pub fn update_with(
         &mut self,
         cfg: &FilterConfig,
@@ -264,8 +274,10 @@ impl TrackFilter {
         let nu = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) / (3.0 * (self.pos.p00 + r));
         let c2 = cfg.outlier_sigmas.powi(2);
         let a = 1.0 / cfg.maneuver_window.max(1.0);
-        self.nis += a * (nu.min(c2) - self.nis);
-        if self.nis > cfg.maneuver_nis {
+        if q.is_some() {
+            self.nis += a * (nu.min(c2) - self.nis);
+        }
+        if q.is_some() && self.nis > cfg.maneuver_nis {
             // Manoeuvre: re-open the velocity (and let this pose pull the position).
             self.pos.p11 = self.pos.p11.max(cfg.maneuver_vel_sigma.powi(2));
             self.pos.p00 = self.pos.p00.max(r);

@@ -186,6 +186,8 @@ pub struct GateStats {
     pub revived: u64,
     /// Accepted observations from partial views ([`Observation::partial`]).
     pub partial: u64,
+    /// Tracks whose position and velocity restarted ([`Observation::restart`]).
+    pub restarts: u64,
     /// Detected events (one-step residual beyond the bound), position or attitude.
     pub events: u64,
     /// One-step model pairs processed (residual test and, for online methods, RLS).
@@ -647,7 +649,8 @@ impl DebrisPredictor {
         let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
         // A partial view's attitude is not measured (module docs of `DEBRIS_PARTIAL`).
         let da = if o.partial { 0.0 } else { quat_angle(&q, &tr.last_obs_q) };
-        let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin {
+        // A restart's centre may lie far from the earlier, biased ones: no position gate.
+        let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin && !o.restart {
             Some(RejectReason::PositionJump)
         } else if da > cfg.max_spin * dt_obs + cfg.jump_att_margin {
             Some(RejectReason::AttitudeJump)
@@ -669,15 +672,28 @@ impl DebrisPredictor {
             return ObserveOutcome::Rejected(r);
         }
         tr.rejects = 0;
+        if o.restart {
+            // The poses so far showed part of the object (`Observation::restart`): its position
+            // and velocity start again from this one; the model pairs, the calibration and the
+            // event growth built on them go (the attitude, the shape and the models stay).
+            tr.filter.restart_position(&cfg.filter, (1.0f64).max(tr.size).powi(2));
+            tr.hist_len = 0;
+            tr.score.clear();
+            tr.pos_bound.clone_from(&self.models.pos_bound);
+            self.stats.restarts += 1;
+        }
         let mut sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
         if o.partial {
             sigma = sigma.max(cfg.partial_sigma_per_m * tr.size);
             self.stats.partial += 1;
         }
-        // Of a position residual, what this pose's own noise explains beyond the event test's
-        // fixed allowance (three of its deviations; 0 for the pose sensor): a residual widens
-        // the bound only by what lies beyond it.
-        let extra = (3.0 * sigma - cfg.event_pos_noise).max(0.0);
+        // Of a position residual, what this pose's own noise and the estimate's own
+        // uncertainty explain beyond the event test's fixed allowance (three deviations of
+        // both; next to nothing for the pose sensor on a settled track): a residual widens the
+        // bound only by what lies beyond it. A track that coasted on loose poses (partial
+        // views) is uncertain where it is; a whole view then moves it without a velocity change.
+        let prior = tr.filter.pos_std(&cfg.filter, o.t - tr.filter.t);
+        let extra = (3.0 * (sigma * sigma + prior * prior).sqrt() - cfg.event_pos_noise).max(0.0);
         tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, (!o.partial).then_some(&q));
         if o.has_rates {
             tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
@@ -748,7 +764,7 @@ impl DebrisPredictor {
             // Position and attitude channels have their own refractory period.
             let armed = tr.n_obs >= cfg.event_min_obs;
             let fails = [
-                tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise - extra, cfg.event_factor),
+                !o.partial && tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise - extra, cfg.event_factor),
                 !o.partial && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
             ];
             for c in 0..2 {

@@ -88,6 +88,7 @@ pub fn read_observations(input: impl BufRead, origin: &str) -> Result<Vec<Observ
             w,
             has_rates: l.v.is_some(),
             partial: false,
+            restart: false,
             seq: i as u32,
         });
     }

@@ -521,3 +521,62 @@ fn a_box_reported_up_to_its_half_turns_is_tracked_through_them() {
     let (jumps_off, _) = run(Some(dkrrt_msg::DebrisShape::cuboid([0.6, 0.15, 0.05], [0.2, 0.0, 0.0])));
     assert_eq!(jumps_off, jumps_plain);
 }
+
+/// A pose flagged as a restart (`Observation::restart`: the front end saw the object larger
+/// than ever before, so the earlier views showed part of it and their centres were off) sets
+/// the position from itself: no event, no manoeuvre, no velocity from the jump, the position
+/// bound not grown. The same jump unflagged is taken for a change of motion.
+#[test]
+fn a_restart_sets_the_position_without_an_event() {
+    let run = |restart: bool| {
+        let mut pr = cv_predictor();
+        let dt = 0.05;
+        let q0 = [1.0, 0.0, 0.0, 0.0];
+        for k in 0..60 {
+            pr.observe(&obs(4, k as f64 * dt, [2.0, 0.0, 0.0], q0));
+        }
+        // 0.25 m on, within the gate (5 m/s × 0.05 s + 0.05 m), and there it stays.
+        for k in 60..70 {
+            let mut o = obs(4, k as f64 * dt, [2.25, 0.0, 0.0], q0);
+            o.restart = restart && k == 60;
+            assert_ne!(pr.observe(&o), ObserveOutcome::Rejected(RejectReason::PositionJump));
+        }
+        let mut buf = ForecastBuffer::for_predictor(&pr);
+        pr.forecast(&mut buf);
+        let tr = pr.track(4).unwrap();
+        let s = pr.stats();
+        (tr.state[0], tr.state[3], s.events + s.maneuvers, s.restarts, buf.pos_radius(0, 10))
+    };
+    let (x, v, changes, restarts, bound) = run(true);
+    assert!((x - 2.25).abs() < 0.01, "the position from the restart: {x}");
+    assert!(v.abs() < 0.05, "no velocity from the jump: {v}");
+    assert_eq!((changes, restarts), (0, 1));
+    let (_, v_plain, changes_plain, restarts_plain, bound_plain) = run(false);
+    assert_eq!(restarts_plain, 0);
+    assert!(changes_plain > 0, "unflagged, the jump is a change of motion");
+    assert!(bound_plain > bound, "and grows the bound: {bound_plain} vs {bound}");
+    assert!(v_plain.abs() > v.abs(), "{v_plain} vs {v}");
+}
+
+/// Partial views (`Observation::partial`) move with the part in view, not with the object:
+/// however far their centres jump, they trip no manoeuvre and no event.
+#[test]
+fn partial_views_trip_no_manoeuvre_and_no_event() {
+    let mut pr = cv_predictor();
+    let dt = 0.05;
+    let q0 = [1.0, 0.0, 0.0, 0.0];
+    for k in 0..60 {
+        pr.observe(&obs(4, k as f64 * dt, [2.0, 0.0, 0.0], q0));
+        pr.set_shape(4, &dkrrt_msg::DebrisShape::sphere(0.1));
+    }
+    // ±0.12 m: four deviations of the pose noise a partial view of a 0.1 m ball is given.
+    for k in 60..80 {
+        let y = if k % 2 == 0 { 0.12 } else { -0.12 };
+        let mut o = obs(4, k as f64 * dt, [2.0, y, 0.0], q0);
+        o.partial = true;
+        assert_eq!(pr.observe(&o), ObserveOutcome::Accepted);
+    }
+    let s = pr.stats();
+    assert_eq!((s.partial, s.maneuvers, s.events), (20, 0, 0));
+    assert!(pr.track(4).unwrap().state[1].abs() < 0.05);
+}

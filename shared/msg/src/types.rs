@@ -276,6 +276,11 @@ pub const DEBRIS_HAS_VELOCITY: u32 = 1;
 /// (the last attitude seen whole).
 pub const DEBRIS_PARTIAL: u32 = 2;
 
+/// [`DebrisObs`] flag: this view shows the object larger than every earlier one (a rod seen
+/// end-on at first, then broadside): the earlier reports showed it in part, so their centres
+/// were off; restart the object's position and velocity estimate from this one.
+pub const DEBRIS_RESTART: u32 = 4;
+
 /// [`DebrisShape::kind`] values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]

@@ -35,6 +35,9 @@ pub struct Observation {
     /// From a partial view (a camera's object cut by the frame or hidden in part): `p` is
     /// good only to about the object's size, `q` is not measured.
     pub partial: bool,
+    /// The earlier records of this object came from views of part of it (`DEBRIS_RESTART`):
+    /// its position and velocity estimate restarts from this one.
+    pub restart: bool,
     /// Sample sequence number (same for all records of one sample instant).
     pub seq: u32,
 }
@@ -284,6 +287,7 @@ impl Sensor {
                 w,
                 has_rates: c.report_rates,
                 partial: false,
+                restart: false,
                 seq,
             };
             if self.len == QUEUE_CAP {
