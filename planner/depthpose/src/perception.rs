@@ -27,8 +27,10 @@
 //!   image border** (a pixel on it; [`crate::PoseEstimate::cut`]) with one of its two largest
 //!   spreads under [`WHOLE`] of the largest seen is held back: when no camera of the capture
 //!   shows the object whole, its cut view with the most pixels is reported with the next
-//!   capture, flagged [`DEBRIS_PARTIAL`], with the attitude and shape last seen whole. The
-//!   predictor takes its position loosely and its attitude not at all, so an object that
+//!   capture, flagged [`DEBRIS_PARTIAL`], with the shape last seen whole, and the attitude
+//!   last seen whole, except a rod's: its axis is the visible part's (a cut or half-hidden
+//!   rod still shows its direction). The predictor takes its position loosely and its
+//!   attitude only if it is a rod's, so an object that
 //!   straddles two cameras of a rig, or the edge of a single camera's view, is still tracked.
 //!   A view hidden in part behind something nearer (its outline touches a nearer object or
 //!   the arm: [`crate::PoseEstimate::occluded`]) is treated as a cut one.
@@ -50,7 +52,7 @@
 //! Allocation-free after construction.
 
 use dkrrt_msg::{
-    DebrisObs, DebrisObservation, DebrisShape, DepthImage, DEBRIS_PARTIAL, DEBRIS_RESTART,
+    DebrisObs, DebrisObservation, DebrisShape, DepthImage, ShapeKind, DEBRIS_PARTIAL, DEBRIS_RESTART,
     DEPTH_MAX_INSTANCES, MAX_DEBRIS,
 };
 
@@ -310,7 +312,15 @@ impl DepthPerception {
                     let (shape, radius) =
                         kn.shape.unwrap_or_else(|| shape_of(classify(&kn.spread), &kn.spread, self.margin_m));
                     let p = visible_centre(&e, &cam, classify(&kn.spread));
-                    let o = item(id, DEBRIS_PARTIAL, img.header.stamp_ns, p, kn.q, (shape, radius));
+                    // A rod cut or hidden in part still shows its direction: its axis from the
+                    // visible part, where that defines one (module docs).
+                    let rod = shape.kind == ShapeKind::Capsule as u32;
+                    let q = if rod && e.spread[0] > PCA_DEFINED * e.spread[1] {
+                        rod_attitude(&kn.q, &e.axes[0])
+                    } else {
+                        kn.q
+                    };
+                    let o = item(id, DEBRIS_PARTIAL, img.header.stamp_ns, p, q, (shape, radius));
                     kn.pending = Some((o, e.points));
                 }
                 continue;

@@ -248,14 +248,15 @@ impl TrackFilter {
 
     /// Measurement update with a pose at time `t > self.t`.
     pub fn update(&mut self, cfg: &FilterConfig, t: f64, p: &[f64; 3], q: &[f64; 4]) {
-        self.update_with(cfg, cfg.pos_sigma, t, p, Some(q));
+        self.update_with(cfg, cfg.pos_sigma, t, p, Some(q), false);
     }
 
     /// [`TrackFilter::update`] with this pose's own position noise `pos_sigma` (m, per axis)
-    /// in place of the configured one; `q = None`: a partial view (an object cut by a camera's
-    /// frame or hidden in part): the attitude was not measured (it is only predicted to `t`),
-    /// and the position, whose centre moves with the part in view rather than with the
-    /// object, feeds no manoeuvre test (an outlier among such poses is still weighed down).
+    /// in place of the configured one; `q = None`: the attitude was not measured (it is only
+    /// predicted to `t`); `partial`: a partial view (an object cut by a camera's frame or
+    /// hidden in part), whose centre moves with the part in view rather than with the
+    /// object: its position feeds no manoeuvre test (an outlier among such poses is still
+    /// weighed down).
     pub fn update_with(
         &mut self,
         cfg: &FilterConfig,
@@ -263,6 +264,7 @@ impl TrackFilter {
         t: f64,
         p: &[f64; 3],
         q: Option<&[f64; 4]>,
+        partial: bool,
     ) {
         let dt = t - self.t;
         debug_assert!(dt > 0.0);
@@ -274,10 +276,10 @@ impl TrackFilter {
         let nu = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) / (3.0 * (self.pos.p00 + r));
         let c2 = cfg.outlier_sigmas.powi(2);
         let a = 1.0 / cfg.maneuver_window.max(1.0);
-        if q.is_some() {
+        if !partial {
             self.nis += a * (nu.min(c2) - self.nis);
         }
-        if q.is_some() && self.nis > cfg.maneuver_nis {
+        if !partial && self.nis > cfg.maneuver_nis {
             // Manoeuvre: re-open the velocity (and let this pose pull the position).
             self.pos.p11 = self.pos.p11.max(cfg.maneuver_vel_sigma.powi(2));
             self.pos.p00 = self.pos.p00.max(r);

@@ -648,7 +648,10 @@ impl DebrisPredictor {
         let dt_obs = o.t - tr.filter.t;
         let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
         // A partial view's attitude is not measured (module docs of `DEBRIS_PARTIAL`).
-        let da = if o.partial { 0.0 } else { quat_angle(&q, &tr.last_obs_q) };
+        // A partial view measures a rod's attitude (its axis: a cut or half-hidden rod still
+        // shows its direction; the spin about it is no shape's business), nothing else's.
+        let att_measured = !o.partial || tr.symmetry.axial();
+        let da = if att_measured { quat_angle(&q, &tr.last_obs_q) } else { 0.0 };
         // A restart's centre may lie far from the earlier, biased ones: no position gate.
         let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin && !o.restart {
             Some(RejectReason::PositionJump)
@@ -694,7 +697,7 @@ impl DebrisPredictor {
         // views) is uncertain where it is; a whole view then moves it without a velocity change.
         let prior = tr.filter.pos_std(&cfg.filter, o.t - tr.filter.t);
         let extra = (3.0 * (sigma * sigma + prior * prior).sqrt() - cfg.event_pos_noise).max(0.0);
-        tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, (!o.partial).then_some(&q));
+        tr.filter.update_with(&cfg.filter, sigma, o.t, &o.p, att_measured.then_some(&q), o.partial);
         if o.has_rates {
             tr.filter.update_rates(&cfg.filter, &o.v, &o.w);
         }
@@ -705,7 +708,7 @@ impl DebrisPredictor {
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
             self.stats.maneuvers += 1;
         }
-        if !o.partial && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
+        if att_measured && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
             tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
             tr.euler.update(
                 o.t,
@@ -724,7 +727,7 @@ impl DebrisPredictor {
         }
         tr.n_obs += 1;
         tr.last_obs_p = o.p;
-        if !o.partial {
+        if att_measured {
             tr.last_obs_q = q;
         }
         tr.pos_bound.relax(dt_obs);
@@ -765,7 +768,7 @@ impl DebrisPredictor {
             let armed = tr.n_obs >= cfg.event_min_obs;
             let fails = [
                 !o.partial && tr.pos_bound.exceeds(1, rp - cfg.event_pos_noise - extra, cfg.event_factor),
-                !o.partial && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
+                att_measured && tr.att_bound.exceeds(1, ra - cfg.event_att_noise, cfg.event_factor),
             ];
             for c in 0..2 {
                 tr.event_run[c] = if fails[c] { tr.event_run[c] + 1 } else { 0 };
@@ -799,7 +802,7 @@ impl DebrisPredictor {
                 let mut ya = [0.0; 7];
                 ya.copy_from_slice(&xn[ROT]);
                 align_quaternion(&mut ya[0..4], &xp[QUAT]);
-                if o.partial {
+                if !att_measured {
                     // No attitude was measured: nothing to learn from.
                 } else if m.att_rollout == Rollout::Linear {
                     m.att_lift.lift(&ya, &mut self.phi_a_next);

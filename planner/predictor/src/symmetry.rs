@@ -73,6 +73,12 @@ impl Symmetry {
         s
     }
 
+    /// Whether the shape is a capsule's: symmetric about its body z axis, so its attitude is
+    /// that axis.
+    pub fn axial(&self) -> bool {
+        self.n == 2
+    }
+
     /// The turns (the identity first).
     pub fn turns(&self) -> &[[f64; 4]] {
         &self.g[..self.n]

@@ -272,8 +272,8 @@ pub struct Heartbeat {
 pub const DEBRIS_HAS_VELOCITY: u32 = 1;
 
 /// [`DebrisObs`] flag: the pose comes from a partial view (an object cut by the image border
-/// or hidden in part): `p` is good only to about the object's size and `q` is not measured
-/// (the last attitude seen whole).
+/// or hidden in part): `p` is good only to about the object's size; `q` is measured only for
+/// a rod (its axis from the visible part), else it is the last attitude seen whole.
 pub const DEBRIS_PARTIAL: u32 = 2;
 
 /// [`DebrisObs`] flag: this view shows the object larger than every earlier one (a rod seen

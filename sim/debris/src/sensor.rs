@@ -33,7 +33,7 @@ pub struct Observation {
     /// Whether `v` and `w` are filled.
     pub has_rates: bool,
     /// From a partial view (a camera's object cut by the frame or hidden in part): `p` is
-    /// good only to about the object's size, `q` is not measured.
+    /// good only to about the object's size, `q` is measured only for a rod (its axis).
     pub partial: bool,
     /// The earlier records of this object came from views of part of it (`DEBRIS_RESTART`):
     /// its position and velocity estimate restarts from this one.
