@@ -647,7 +647,6 @@ impl DebrisPredictor {
         // Physical plausibility gate against the last accepted observation.
         let dt_obs = o.t - tr.filter.t;
         let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
-        // A partial view's attitude is not measured (module docs of `DEBRIS_PARTIAL`).
         // A partial view measures a rod's attitude (its axis: a cut or half-hidden rod still
         // shows its direction; the spin about it is no shape's business), nothing else's.
         let att_measured = !o.partial || tr.symmetry.axial();
