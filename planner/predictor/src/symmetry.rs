@@ -109,13 +109,7 @@ pub fn symmetric_angle(q: &[f64], truth: &[f64], shape: &DebrisShape) -> f64 {
     match ShapeKind::from_u32(shape.kind) {
         Some(ShapeKind::Sphere) => 0.0,
         Some(ShapeKind::Capsule) => {
-            let z = |q: &[f64]| {
-                let n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-                let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
-                [2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2, 1.0 - 2.0 * (x * x + y * y) / n2]
-            };
-            let (a, b) = (z(q), z(&t));
-            (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos()
+            crate::axis::line_angle(&crate::axis::body_z(q), &crate::axis::body_z(&t))
         }
         _ => Symmetry::of(shape)
             .turns()

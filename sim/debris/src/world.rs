@@ -301,14 +301,11 @@ impl DebrisWorld {
             let phi = (-h / self.perturb.accel_noise_tau).exp();
             let s = sig * (1.0 - phi * phi).sqrt();
             for d in self.debris.iter_mut() {
+                // Drawn for every object, so the stream is the same whichever are stepped.
+                let g = Vector3::new(gauss(&mut self.rng), gauss(&mut self.rng), gauss(&mut self.rng));
                 if self.only.is_some_and(|id| id != d.id) {
-                    // The draws `gauss` takes (two uniforms each), dropped.
-                    for _ in 0..6 {
-                        let _: f64 = self.rng.random();
-                    }
                     continue;
                 }
-                let g = Vector3::new(gauss(&mut self.rng), gauss(&mut self.rng), gauss(&mut self.rng));
                 d.noise_accel = d.noise_accel * phi + g * s;
             }
         }
