@@ -11,7 +11,9 @@
 use dkrrt_camera::CameraConfig;
 use dkrrt_debris::{DebrisWorld, Observation, Scene, SensorConfig};
 use dkrrt_depthpose::perception::DepthPerception;
-use dkrrt_msg::{DebrisObservation, DepthImage, ShapeKind, Zeroed, DEBRIS_PARTIAL, DEBRIS_RESTART};
+use dkrrt_msg::{
+    DebrisObservation, DepthImage, ShapeKind, Zeroed, DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL, DEBRIS_RESTART,
+};
 use dkrrt_predictor::eval::{record, EvalError, Recording};
 use dkrrt_sim::camera::{CaptureClock, Renderer, Snapshot};
 
@@ -74,6 +76,7 @@ pub fn record_depth(
                 has_rates: false,
                 partial,
                 restart: it.flags & DEBRIS_RESTART != 0,
+                axis_only: it.flags & DEBRIS_AXIS_ONLY != 0,
                 seq: capture as u32,
             });
             obs_shapes.push((it.shape, it.bounding_radius));

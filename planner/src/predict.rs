@@ -15,8 +15,8 @@ use dkrrt_config::Scenario;
 use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
 use dkrrt_depthpose::perception::DepthPerception;
 use dkrrt_msg::{
-    ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_HAS_VELOCITY,
-    DEBRIS_PARTIAL, DEBRIS_RESTART, FORECAST_STEPS, MAX_DEBRIS,
+    ContractLimits, DebrisForecast, DebrisObservation, DebrisShape, ForecastStep, DEBRIS_AXIS_ONLY,
+    DEBRIS_HAS_VELOCITY, DEBRIS_PARTIAL, DEBRIS_RESTART, FORECAST_STEPS, MAX_DEBRIS,
 };
 use dkrrt_predictor::eval::{perturbed_scene, record, training_set, Recording};
 use dkrrt_predictor::training::{TrainedModels, ATTITUDE_MODEL};
@@ -329,6 +329,7 @@ impl PredictorCore {
                 has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
                 partial: it.flags & DEBRIS_PARTIAL != 0,
                 restart: it.flags & DEBRIS_RESTART != 0,
+                axis_only: it.flags & DEBRIS_AXIS_ONLY != 0,
                 seq: frame.header.seq as u32,
             };
             match self.pred.observe(&o) {

@@ -70,6 +70,7 @@ pub fn run(run: &str, sc: &Scenario, out: &Path, max_wall_s: Option<f64>) -> Res
                             has_rates: it.flags & DEBRIS_HAS_VELOCITY != 0,
                             partial: it.flags & DEBRIS_PARTIAL != 0,
                             restart: it.flags & DEBRIS_RESTART != 0,
+                            axis_only: it.flags & DEBRIS_AXIS_ONLY != 0,
                             seq: f.header.seq as u32,
                         };
                         match dkrrt_predictor::recorded::write_observation(&mut w, &o) {

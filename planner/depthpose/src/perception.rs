@@ -16,7 +16,9 @@
 //!   along the camera ray by 2.83 × the thinnest spread. A rod's or a panel's visible centroid
 //!   is its centre (thin).
 //! * **Attitude**: a rod's body z is its axis, turned from the last attitude by the smallest
-//!   rotation (the spin about the axis is not observable, so it is not made up); a panel's
+//!   rotation (the spin about the axis is not observable, so it is not made up; it is
+//!   flagged [`DEBRIS_AXIS_ONLY`]: that spin drifts as the axis turns, and so is no
+//!   measurement); a panel's
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
@@ -52,8 +54,8 @@
 //! Allocation-free after construction.
 
 use dkrrt_msg::{
-    DebrisObs, DebrisObservation, DebrisShape, DepthImage, ShapeKind, DEBRIS_PARTIAL, DEBRIS_RESTART,
-    DEPTH_MAX_INSTANCES, MAX_DEBRIS,
+    DebrisObs, DebrisObservation, DebrisShape, DepthImage, ShapeKind, DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL,
+    DEBRIS_RESTART, DEPTH_MAX_INSTANCES, MAX_DEBRIS,
 };
 
 use dkrrt_collision::pose::{quat_mul as mul, rotation_matrix as rotation};
@@ -221,6 +223,12 @@ pub fn shape_of(c: Class, s: &[f64; 3], margin: f64) -> (DebrisShape, f64) {
             (DebrisShape::sphere(r), r)
         }
     }
+}
+
+/// Whether a report of `shape` measures only its body z axis ([`DEBRIS_AXIS_ONLY`]): a rod's
+/// (a capsule).
+fn axis_only(shape: &DebrisShape) -> bool {
+    shape.kind == ShapeKind::Capsule as u32
 }
 
 impl DepthPerception {
@@ -430,6 +438,9 @@ fn item(
     q: [f64; 4],
     (shape, radius): (DebrisShape, f64),
 ) -> DebrisObs {
+    // A rod's attitude is its axis (module docs): the spin about it is the front end's
+    // bookkeeping.
+    let flags = if axis_only(&shape) { flags | DEBRIS_AXIS_ONLY } else { flags };
     DebrisObs { id, flags, t_meas_ns: t_ns, p, q, v: [0.0; 3], w: [0.0; 3], bounding_radius: radius, shape }
 }
 

@@ -188,7 +188,7 @@ fn a_partial_view_is_not_reported() {
 /// reported.
 #[test]
 fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
-    use dkrrt_msg::DEBRIS_PARTIAL;
+    use dkrrt_msg::{DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL};
     use parry3d_f64::shape::SharedShape;
     let h = std::f64::consts::FRAC_1_SQRT_2;
     // A 1.8 m rod along y, 4 m ahead: whole in view at y = 0; at y = 3.08 the frame's side
@@ -208,7 +208,9 @@ fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
     let next = items(&mut per, &mut out, &[rod(0.0)], 1.2);
     assert_eq!(next.len(), 2, "the held view, then this capture's whole view");
     let (cut, now) = (next[0], next[1]);
-    assert_eq!(cut.flags, DEBRIS_PARTIAL);
+    // A rod's report measures its axis alone.
+    assert_eq!(whole[0].flags, DEBRIS_AXIS_ONLY);
+    assert_eq!(cut.flags, DEBRIS_PARTIAL | DEBRIS_AXIS_ONLY);
     assert_eq!(cut.t_meas_ns, 1_100_000_000);
     // The shape last seen whole; a rod's axis from the visible half (the same line here).
     assert_eq!(cut.shape, whole[0].shape);
@@ -217,7 +219,7 @@ fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
     let d = ((cut.p[0] - 4.0).powi(2) + (cut.p[1] - 3.08).powi(2) + cut.p[2].powi(2)).sqrt();
     assert!(d < 0.9, "the cut view's centre {:?}", cut.p);
     assert!(cut.p[1].abs() < 3.08, "the visible half is the inner one: {:?}", cut.p);
-    assert_eq!((now.flags, now.t_meas_ns), (0, 1_200_000_000));
+    assert_eq!((now.flags, now.t_meas_ns), (DEBRIS_AXIS_ONLY, 1_200_000_000));
     assert_eq!(per.stats.partial_reported, 1);
     // A rig: one camera of the capture sees it cut, the next whole: the whole view is
     // reported, and nothing is held for the next capture.
@@ -348,7 +350,7 @@ fn cuboid(h: [f64; 3]) -> parry3d_f64::shape::SharedShape {
 /// `DEBRIS_RESTART` (the earlier ones showed part of it), once.
 #[test]
 fn a_rod_seen_end_on_then_broadside_restarts_its_estimate() {
-    use dkrrt_msg::{DEBRIS_PARTIAL, DEBRIS_RESTART};
+    use dkrrt_msg::{DEBRIS_AXIS_ONLY as AXIS, DEBRIS_PARTIAL, DEBRIS_RESTART};
     use parry3d_f64::shape::SharedShape;
     let h = std::f64::consts::FRAC_1_SQRT_2;
     // A 2 m rod 3.5 m ahead: end-on, only its near cap shows.
@@ -361,17 +363,19 @@ fn a_rod_seen_end_on_then_broadside_restarts_its_estimate() {
         let n = per.convert(&render(std::slice::from_ref(obj), &exact(), t), &mut out);
         out.items[..n].iter().filter(|it| it.id == 7).map(|it| it.flags).collect::<Vec<_>>()
     };
+    // End-on it looks bulky (its attitude held, a full one); broadside it is a rod (its axis
+    // alone).
     assert_eq!(flags(&mut per, &end_on, 1.0), [0]);
     assert_eq!(flags(&mut per, &end_on, 1.1), [0]);
-    assert_eq!(flags(&mut per, &broadside, 1.2), [DEBRIS_RESTART]);
-    assert_eq!(flags(&mut per, &broadside, 1.3), [0], "once");
+    assert_eq!(flags(&mut per, &broadside, 1.2), [DEBRIS_RESTART | AXIS]);
+    assert_eq!(flags(&mut per, &broadside, 1.3), [AXIS], "once");
     assert_eq!(flags(&mut per, &end_on, 1.4), Vec::<u32>::new(), "end-on now shows it in part");
     assert_eq!(per.stats.restarts, 1);
     assert_eq!(DEBRIS_RESTART & DEBRIS_PARTIAL, 0);
     // Seen broadside from the start: nothing to restart.
     let mut fresh = DepthPerception::default();
-    assert_eq!(flags(&mut fresh, &broadside, 1.0), [0]);
-    assert_eq!(flags(&mut fresh, &broadside, 1.1), [0]);
+    assert_eq!(flags(&mut fresh, &broadside, 1.0), [AXIS]);
+    assert_eq!(flags(&mut fresh, &broadside, 1.1), [AXIS]);
 }
 
 /// A rod hidden in part behind a nearer object, too little for the view to count as partial by
@@ -379,7 +383,7 @@ fn a_rod_seen_end_on_then_broadside_restarts_its_estimate() {
 /// and reported late, flagged `DEBRIS_PARTIAL`, its centre not taken as the object's.
 #[test]
 fn a_view_hidden_in_part_behind_a_nearer_object_is_a_partial_one() {
-    use dkrrt_msg::DEBRIS_PARTIAL;
+    use dkrrt_msg::{DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL};
     use parry3d_f64::shape::SharedShape;
     let h = std::f64::consts::FRAC_1_SQRT_2;
     // A 1.8 m rod along y, 4 m ahead; a panel 1 m nearer hides its top 0.25 m.
@@ -395,15 +399,15 @@ fn a_view_hidden_in_part_behind_a_nearer_object_is_a_partial_one() {
     assert!(items(&mut per, &[rod.clone(), panel.clone()], 1.1).is_empty(), "held back");
     let next = items(&mut per, &[rod.clone()], 1.2);
     assert_eq!(next.len(), 2);
-    assert_eq!((next[0].flags, next[0].t_meas_ns), (DEBRIS_PARTIAL, 1_100_000_000));
-    assert_eq!(next[1].flags, 0);
+    assert_eq!((next[0].flags, next[0].t_meas_ns), (DEBRIS_PARTIAL | DEBRIS_AXIS_ONLY, 1_100_000_000));
+    assert_eq!(next[1].flags, DEBRIS_AXIS_ONLY);
 }
 
 /// A rod cut by the frame still shows its direction: its partial report carries the axis of
 /// the visible part (the attitude last seen whole turned onto it), not the stale one.
 #[test]
 fn a_cut_rods_partial_report_carries_its_visible_axis() {
-    use dkrrt_msg::DEBRIS_PARTIAL;
+    use dkrrt_msg::{DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL};
     use parry3d_f64::shape::SharedShape;
     let h = std::f64::consts::FRAC_1_SQRT_2;
     // A 1.8 m rod along y 4 m ahead, then turned 0.3 rad about x and cut by the side edge.
@@ -422,7 +426,7 @@ fn a_cut_rods_partial_report_carries_its_visible_axis() {
     assert!(items(&mut per, &[rod(3.08, tilted)], 1.1).is_empty(), "held back");
     let next = items(&mut per, &[], 1.2);
     assert_eq!(next.len(), 1);
-    assert_eq!(next[0].flags, DEBRIS_PARTIAL);
+    assert_eq!(next[0].flags, DEBRIS_PARTIAL | DEBRIS_AXIS_ONLY);
     let err = angle_sign_free(&rot_z(&next[0].q), &rot_z(&tilted));
     assert!(err < 0.05, "the visible axis: {err} rad off");
     assert!(angle_sign_free(&rot_z(&along_y), &rot_z(&tilted)) > 0.25);

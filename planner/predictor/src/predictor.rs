@@ -642,7 +642,13 @@ impl DebrisPredictor {
         let nq = q.iter().map(|v| v * v).sum::<f64>().sqrt();
         q.iter_mut().for_each(|v| *v /= nq);
         let (man0, xprior) = (tr.filter.maneuvers, tr.filter.predicted(&cfg.filter, o.t));
-        q = tr.symmetry.nearest(&q, &xprior[QUAT]);
+        // A report of an axis alone (a rod's, from a camera): that axis on the prediction's
+        // spin; its own spin is the front end's bookkeeping, which drifts as the axis turns.
+        q = if o.axis_only {
+            crate::symmetry::on_axis(&q, &xprior[QUAT])
+        } else {
+            tr.symmetry.nearest(&q, &xprior[QUAT])
+        };
         align_quaternion(&mut q, &tr.filter.x[QUAT]);
         // Physical plausibility gate against the last accepted observation.
         let dt_obs = o.t - tr.filter.t;
@@ -650,7 +656,13 @@ impl DebrisPredictor {
         // A partial view measures a rod's attitude (its axis: a cut or half-hidden rod still
         // shows its direction; the spin about it is no shape's business), nothing else's.
         let att_measured = !o.partial || tr.symmetry.axial();
-        let da = if att_measured { quat_angle(&q, &tr.last_obs_q) } else { 0.0 };
+        let da = match (att_measured, o.axis_only) {
+            (false, _) => 0.0,
+            (true, true) => {
+                crate::axis::line_angle(&crate::axis::body_z(&q), &crate::axis::body_z(&tr.last_obs_q))
+            }
+            (true, false) => quat_angle(&q, &tr.last_obs_q),
+        };
         // A restart's centre may lie far from the earlier, biased ones: no position gate.
         let reason = if dp > cfg.max_speed * dt_obs + cfg.jump_pos_margin && !o.restart {
             Some(RejectReason::PositionJump)

@@ -89,6 +89,7 @@ pub fn read_observations(input: impl BufRead, origin: &str) -> Result<Vec<Observ
             has_rates: l.v.is_some(),
             partial: false,
             restart: false,
+            axis_only: false,
             seq: i as u32,
         });
     }

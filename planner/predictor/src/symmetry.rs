@@ -85,8 +85,19 @@ impl Symmetry {
     }
 
     /// Of the attitudes `q ⊗ g` (`g` a turn) the one nearest to `reference`, its sign aligned
-    /// with `reference`'s; ties keep the earlier turn (the identity first).
+    /// with `reference`'s; ties keep the earlier turn (the identity first). A capsule's
+    /// end-for-end turn is chosen by its axis alone (the one whose body z points along
+    /// `reference`'s): its spin about the axis is nobody's measurement, and a spin that has
+    /// drifted apart from `reference`'s by over a quarter turn would otherwise pick the turn
+    /// that reverses the axis.
     pub fn nearest(&self, q: &[f64; 4], reference: &[f64]) -> [f64; 4] {
+        if self.axial() {
+            let (z, zr) = (crate::axis::body_z(q), crate::axis::body_z(reference));
+            let along = z.iter().zip(&zr).map(|(a, b)| a * b).sum::<f64>() >= 0.0;
+            let c = if along { *q } else { quat_mul(q, &self.g[1]) };
+            let d = c.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>();
+            return if d < 0.0 { c.map(|v| -v) } else { c };
+        }
         let mut best = (f64::NEG_INFINITY, *q);
         for g in self.turns() {
             let c = quat_mul(q, g);
@@ -96,6 +107,23 @@ impl Symmetry {
             }
         }
         best.1
+    }
+}
+
+/// An attitude that measures only its body z axis (`Observation::axis_only`: a rod seen by a
+/// camera), taken onto `reference` (the track's prediction): `reference` turned by the
+/// smallest rotation that takes its body z onto the line of `q`'s, sign-aligned with it. The
+/// spin about the axis and the axis's sign are `reference`'s: a report carries neither.
+pub fn on_axis(q: &[f64; 4], reference: &[f64]) -> [f64; 4] {
+    let (z, zr) = (crate::axis::body_z(q), crate::axis::body_z(reference));
+    let z = if z.iter().zip(&zr).map(|(a, b)| a * b).sum::<f64>() < 0.0 { z.map(|v| -v) } else { z };
+    let mut c = crate::axis::AxisPrecession::align(reference, &z);
+    let n = c.iter().map(|v| v * v).sum::<f64>().sqrt();
+    c.iter_mut().for_each(|v| *v /= n);
+    if c.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+        c.map(|v| -v)
+    } else {
+        c
     }
 }
 
@@ -163,6 +191,27 @@ mod tests {
     }
 
     #[test]
+    fn an_axis_only_report_keeps_the_references_spin_and_sign() {
+        let reference = axis_angle([0.36, 0.48, 0.8], 1.1);
+        // The truth: the reference tilted by 0.2 rad; the report spun arbitrarily about its
+        // axis and turned end for end.
+        let truth = quat_mul(&reference, &axis_angle([0.0, 1.0, 0.0], 0.2));
+        for spin in [0.0, 1.0, 2.5, 3.05] {
+            let report = quat_mul(&quat_mul(&truth, &axis_angle([0.0, 0.0, 1.0], spin)), &HALF[1]);
+            let m = on_axis(&report, &reference);
+            // The axis is the report's (the truth's line), the rest the reference's: the
+            // measurement differs from the reference by the tilt alone.
+            assert!(
+                (quat_angle(&m, &reference) - 0.2).abs() < 1e-9,
+                "{spin}: {}",
+                quat_angle(&m, &reference)
+            );
+            assert!(quat_angle(&m, &truth) < 1e-9, "{spin}");
+            assert!(m.iter().zip(&reference).map(|(a, b)| a * b).sum::<f64>() > 0.0);
+        }
+    }
+
+    #[test]
     fn a_capsule_is_measured_by_its_axis() {
         let shape = DebrisShape::capsule(1.0, 0.05);
         let truth = axis_angle([0.0, 0.6, 0.8], 0.7);
@@ -173,5 +222,17 @@ mod tests {
         let ends = quat_mul(&tilted, &HALF[1]);
         let n = Symmetry::of(&shape).nearest(&ends, &truth);
         assert!((quat_angle(&n, &truth) - 0.2).abs() < 1e-9);
+        // A report whose spin has drifted from the reference's by more than a quarter turn
+        // (a depth camera does not see it): the turn is still chosen by the axis, and the
+        // report's own spin is kept.
+        let tilted = quat_mul(&truth, &axis_angle([0.0, 1.0, 0.0], 0.2));
+        let drifted = quat_mul(&tilted, &axis_angle([0.0, 0.0, 1.0], 3.05));
+        for r in [drifted, quat_mul(&drifted, &HALF[1])] {
+            let n = Symmetry::of(&shape).nearest(&r, &truth);
+            assert!((symmetric_angle(&n, &truth, &shape) - 0.2).abs() < 1e-9);
+            let (zn, zt) = (crate::axis::body_z(&n), crate::axis::body_z(&truth));
+            assert!(zn.iter().zip(&zt).map(|(a, b)| a * b).sum::<f64>() > 0.9, "{zn:?} {zt:?}");
+            assert!((quat_angle(&n, &drifted) < 1e-9) || (quat_angle(&n, &drifted.map(|v| -v)) < 1e-9));
+        }
     }
 }

@@ -595,3 +595,45 @@ fn partial_views_trip_no_manoeuvre_and_no_event() {
     assert_eq!((s.partial, s.maneuvers, s.events), (20, 0, 0));
     assert!(pr.track(4).unwrap().state[1].abs() < 0.05);
 }
+
+/// A rod's report that measures its axis alone (`Observation::axis_only`, the depth front
+/// end's `DEBRIS_AXIS_ONLY`): its spin about the axis is anything (a front end's bookkeeping
+/// drifts as the axis turns) and its axis's sign too. The predictor takes the axis onto its
+/// own spin and gates on the angle between axes: no jump, and the axis follows the truth.
+/// The same reports taken as full attitudes are jumps.
+#[test]
+fn an_axis_only_report_is_tracked_by_its_axis_whatever_its_spin() {
+    use dkrrt_koopman::debris_state::quat_mul;
+    let body_z = |q: &[f64]| dkrrt_predictor::axis::body_z(q);
+    let run = |axis_only: bool| {
+        let mut pr = cv_predictor();
+        let dt = 0.05;
+        let mut worst = 0.0f64;
+        for k in 0..160 {
+            let t = k as f64 * dt;
+            // Tumbling end over end at 0.6 rad/s about x.
+            let a = 0.3 * t;
+            let q = [a.cos(), a.sin(), 0.0, 0.0];
+            // Reported with a spin of 2 rad more each time, every fourth one end for end.
+            let s = k as f64;
+            let mut reported = quat_mul(&q, &[s.cos(), 0.0, 0.0, s.sin()]);
+            if k % 4 == 3 {
+                reported = quat_mul(&reported, &[0.0, 1.0, 0.0, 0.0]);
+            }
+            let mut o = obs(9, t, [2.0, 0.0, 0.5], reported);
+            o.axis_only = axis_only;
+            pr.observe(&o);
+            pr.set_shape(9, &dkrrt_msg::DebrisShape::capsule(0.6, 0.03));
+            if k > 40 {
+                let est = body_z(&pr.track(9).unwrap().state[6..10]);
+                worst = worst.max(dkrrt_predictor::axis::line_angle(&est, &body_z(&q)));
+            }
+        }
+        (pr.stats().att_jump, pr.stats().events, worst)
+    };
+    let (jumps, events, worst) = run(true);
+    assert_eq!((jumps, events), (0, 0));
+    assert!(worst < 0.05, "the axis follows the truth: {worst} rad off");
+    let (jumps_full, _, _) = run(false);
+    assert!(jumps_full >= 30, "taken as full attitudes the reports jump: {jumps_full}");
+}

@@ -281,6 +281,11 @@ pub const DEBRIS_PARTIAL: u32 = 2;
 /// were off; restart the object's position and velocity estimate from this one.
 pub const DEBRIS_RESTART: u32 = 4;
 
+/// [`DebrisObs`] flag: `q` measures only the body z axis (a rod's, which a depth view shows):
+/// its spin about that axis is arbitrary (a front end's bookkeeping, not a measurement), and
+/// so is its sign. The predictor takes the axis only and keeps its own spin.
+pub const DEBRIS_AXIS_ONLY: u32 = 8;
+
 /// [`DebrisShape::kind`] values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u32)]

@@ -38,6 +38,9 @@ pub struct Observation {
     /// The earlier records of this object came from views of part of it (`DEBRIS_RESTART`):
     /// its position and velocity estimate restarts from this one.
     pub restart: bool,
+    /// `q` measures only the body z axis (`DEBRIS_AXIS_ONLY`: a rod seen by a camera): its
+    /// spin about the axis and its sign are arbitrary.
+    pub axis_only: bool,
     /// Sample sequence number (same for all records of one sample instant).
     pub seq: u32,
 }
@@ -288,6 +291,7 @@ impl Sensor {
                 has_rates: c.report_rates,
                 partial: false,
                 restart: false,
+                axis_only: false,
                 seq,
             };
             if self.len == QUEUE_CAP {
