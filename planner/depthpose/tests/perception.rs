@@ -196,7 +196,7 @@ fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
     let rod = |y: f64| (7, SharedShape::capsule_z(0.9, 0.03), [4.0, y, 0.0], [h, -h, 0.0, 0.0], 0.93);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut items = |per: &mut DepthPerception, out: &mut DebrisObservation, objs: &[_], t: f64| {
+    let items = |per: &mut DepthPerception, out: &mut DebrisObservation, objs: &[_], t: f64| {
         let n = per.convert(&render(objs, &exact(), t), out);
         out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
     };
