@@ -5,7 +5,9 @@
 //! `{"t": 12.34, "id": 3, "p": [x, y, z], "q": [w, x, y, z]}` with the measurement time `t`
 //! [s], the debris id, the position [m] and the attitude body → frame (unit quaternion, any
 //! sign); optionally `"v": [..], "w": [..]` (velocity [m/s], body rate [rad/s]) when the
-//! sensor reports rates. Positions are in the arm base frame, whose axes are those of the
+//! sensor reports rates; optionally `"flags": n`, the `DebrisObs` flags a perception front end
+//! set (bit 1 `DEBRIS_PARTIAL`, bit 2 `DEBRIS_RESTART`, bit 3 `DEBRIS_AXIS_ONLY`; written when
+//! any is set, other bits are an error). Positions are in the arm base frame, whose axes are those of the
 //! module's LVLH frame (the attitude model needs only the attitude). Blank lines are skipped;
 //! anything else that is not such an item is an error naming the line.
 //!
@@ -23,6 +25,7 @@ use crate::Models;
 use dkrrt_debris::Observation;
 use dkrrt_deep::{Progress, TrainData};
 use dkrrt_koopman::debris_state::align_quaternion;
+use dkrrt_msg::{DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL, DEBRIS_RESTART};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -39,7 +42,16 @@ struct Line {
     v: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     w: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    flags: u32,
 }
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
+}
+
+/// The flags a line may carry (module docs).
+const LINE_FLAGS: u32 = DEBRIS_PARTIAL | DEBRIS_RESTART | DEBRIS_AXIS_ONLY;
 
 /// Writes `o` as one line of the format.
 pub fn write_observation(out: &mut impl Write, o: &Observation) -> std::io::Result<()> {
@@ -50,6 +62,10 @@ pub fn write_observation(out: &mut impl Write, o: &Observation) -> std::io::Resu
         q: o.q,
         v: o.has_rates.then_some(o.v),
         w: o.has_rates.then_some(o.w),
+        flags: [(o.partial, DEBRIS_PARTIAL), (o.restart, DEBRIS_RESTART), (o.axis_only, DEBRIS_AXIS_ONLY)]
+            .iter()
+            .filter(|(on, _)| *on)
+            .fold(0, |f, (_, bit)| f | bit),
     };
     serde_json::to_writer(&mut *out, &line).map_err(std::io::Error::other)?;
     out.write_all(b"\n")
@@ -78,6 +94,13 @@ pub fn read_observations(input: impl BufRead, origin: &str) -> Result<Vec<Observ
         if !rates_ok {
             return Err(format!("{origin}:{}: \"v\" and \"w\" go together", i + 1));
         }
+        if l.flags & !LINE_FLAGS != 0 {
+            return Err(format!(
+                "{origin}:{}: flags {}: only bits 1-3 (partial, restart, axis only)",
+                i + 1,
+                l.flags
+            ));
+        }
         out.push(Observation {
             id: l.id,
             t: l.t,
@@ -87,9 +110,9 @@ pub fn read_observations(input: impl BufRead, origin: &str) -> Result<Vec<Observ
             v,
             w,
             has_rates: l.v.is_some(),
-            partial: false,
-            restart: false,
-            axis_only: false,
+            partial: l.flags & DEBRIS_PARTIAL != 0,
+            restart: l.flags & DEBRIS_RESTART != 0,
+            axis_only: l.flags & DEBRIS_AXIS_ONLY != 0,
             seq: i as u32,
         });
     }

@@ -42,6 +42,18 @@ fn file_round_trip_and_errors_name_the_line() {
     }
     assert_eq!((back[3].v, back[3].w), (obs[3].v, obs[3].w));
     assert!(!back[4].has_rates && !text.lines().nth(4).unwrap().contains("\"v\""));
+    // A depth front end's flags go with the line (and only when set).
+    let mut flagged = obs.clone();
+    flagged[5].partial = true;
+    flagged[6].restart = true;
+    (flagged[7].axis_only, flagged[7].partial) = (true, true);
+    let text_f = to_text(&flagged);
+    let back = read_observations(text_f.as_bytes(), "rec.jsonl").unwrap();
+    for (a, b) in flagged.iter().zip(&back) {
+        assert_eq!((a.partial, a.restart, a.axis_only), (b.partial, b.restart, b.axis_only));
+    }
+    assert!(text_f.lines().nth(7).unwrap().contains("\"flags\":10"));
+    assert!(!text_f.lines().nth(4).unwrap().contains("flags"));
 
     let bad = |line: &str| {
         let t = format!("{}\n\n{line}\n", text.lines().next().unwrap());
@@ -55,6 +67,8 @@ fn file_round_trip_and_errors_name_the_line() {
     assert!(e.contains("\"v\" and \"w\" go together"), "{e}");
     let e = bad(r#"{"t": 1.0, "id": 2, "p": [0, 0, 1e999], "q": [1, 0, 0, 0]}"#);
     assert!(e.starts_with("rec.jsonl:3:"), "{e}");
+    let e = bad(r#"{"t": 1.0, "id": 2, "p": [0, 0, 0], "q": [1, 0, 0, 0], "flags": 1}"#);
+    assert!(e.starts_with("rec.jsonl:3:") && e.contains("flags 1"), "{e}");
     let e = bad(r#"{"t": 1.0, "id": 2, "p": [0, 0, 0], "q": [1, 0, 0, 0], "extra": 1}"#);
     assert!(e.contains("extra"), "{e}");
 }
