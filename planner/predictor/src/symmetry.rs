@@ -92,21 +92,31 @@ impl Symmetry {
     /// that reverses the axis.
     pub fn nearest(&self, q: &[f64; 4], reference: &[f64]) -> [f64; 4] {
         if self.axial() {
-            let (z, zr) = (crate::axis::body_z(q), crate::axis::body_z(reference));
-            let along = z.iter().zip(&zr).map(|(a, b)| a * b).sum::<f64>() >= 0.0;
-            let c = if along { *q } else { quat_mul(q, &self.g[1]) };
-            let d = c.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>();
-            return if d < 0.0 { c.map(|v| -v) } else { c };
+            let along = dot(&crate::axis::body_z(q), &crate::axis::body_z(reference)) >= 0.0;
+            return signed_like(if along { *q } else { quat_mul(q, &self.g[1]) }, reference);
         }
         let mut best = (f64::NEG_INFINITY, *q);
         for g in self.turns() {
             let c = quat_mul(q, g);
-            let d = c.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>();
+            let d = dot(&c, reference);
             if d.abs() > best.0 + 1e-12 {
-                best = (d.abs(), if d < 0.0 { c.map(|v| -v) } else { c });
+                best = (d.abs(), signed_like(c, reference));
             }
         }
         best.1
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// `c` or `−c` (the same attitude), whichever lies on `reference`'s side.
+fn signed_like(c: [f64; 4], reference: &[f64]) -> [f64; 4] {
+    if dot(&c, reference) < 0.0 {
+        c.map(|v| -v)
+    } else {
+        c
     }
 }
 
@@ -116,15 +126,10 @@ impl Symmetry {
 /// spin about the axis and the axis's sign are `reference`'s: a report carries neither.
 pub fn on_axis(q: &[f64; 4], reference: &[f64]) -> [f64; 4] {
     let (z, zr) = (crate::axis::body_z(q), crate::axis::body_z(reference));
-    let z = if z.iter().zip(&zr).map(|(a, b)| a * b).sum::<f64>() < 0.0 { z.map(|v| -v) } else { z };
-    let mut c = crate::axis::AxisPrecession::align(reference, &z);
-    let n = c.iter().map(|v| v * v).sum::<f64>().sqrt();
-    c.iter_mut().for_each(|v| *v /= n);
-    if c.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
-        c.map(|v| -v)
-    } else {
-        c
-    }
+    let z = if dot(&z, &zr) < 0.0 { z.map(|v| -v) } else { z };
+    let c = crate::axis::AxisPrecession::align(reference, &z);
+    let n = dot(&c, &c).sqrt();
+    signed_like(c.map(|v| v / n), reference)
 }
 
 /// The angle between attitudes `q` and `truth` (w, x, y, z) modulo the symmetry of `shape`
