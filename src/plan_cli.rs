@@ -52,6 +52,9 @@ pub fn export(sc: &Scenario) -> Result<Problem, String> {
                         Some(ShapeKind::Capsule) => {
                             ProblemShape::Capsule { half_length: desc.dims[0], radius: desc.dims[1] }
                         }
+                        Some(ShapeKind::Disc) => {
+                            ProblemShape::Disc { radius: desc.dims[0], half_thickness: desc.dims[1] }
+                        }
                         _ => ProblemShape::Box { half_extents: desc.dims },
                     };
                     obstacles.push((d.id, ProblemObstacle { shape, poses: Vec::new() }, desc.offset));

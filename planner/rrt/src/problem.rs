@@ -14,9 +14,21 @@ use crate::world::{After, TimedPose, WorldInTime};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ProblemShape {
-    Sphere { radius: f64 },
-    Box { half_extents: [f64; 3] },
-    Capsule { half_length: f64, radius: f64 },
+    Sphere {
+        radius: f64,
+    },
+    Box {
+        half_extents: [f64; 3],
+    },
+    Capsule {
+        half_length: f64,
+        radius: f64,
+    },
+    /// A flat cylinder about the local z axis.
+    Disc {
+        radius: f64,
+        half_thickness: f64,
+    },
 }
 
 /// One timed pose (base frame of the arm; `q` = w, x, y, z).
@@ -109,6 +121,9 @@ impl Problem {
                 ProblemShape::Capsule { half_length, radius } => {
                     vec![(f("shape.half_length"), *half_length), (f("shape.radius"), *radius)]
                 }
+                ProblemShape::Disc { radius, half_thickness } => {
+                    vec![(f("shape.radius"), *radius), (f("shape.half_thickness"), *half_thickness)]
+                }
             };
             for (name, v) in dims {
                 if !(v.is_finite() && v > 0.0 && v <= 50.0) {
@@ -145,6 +160,7 @@ impl Problem {
                 ProblemShape::Sphere { radius } => DebrisShape::sphere(*radius),
                 ProblemShape::Box { half_extents } => DebrisShape::cuboid(*half_extents, [0.0; 3]),
                 ProblemShape::Capsule { half_length, radius } => DebrisShape::capsule(*half_length, *radius),
+                ProblemShape::Disc { radius, half_thickness } => DebrisShape::disc(*radius, *half_thickness),
             };
             let poses: Vec<TimedPose> = o
                 .poses

@@ -1,5 +1,6 @@
 //! One configuration against 32 obstacles (target ≤ 3 µs mean): pose + proximity, and the
-//! planner's early-exit clearance, on random scenes around the arm.
+//! planner's early-exit clearance, on random scenes around the arm; and one link against one
+//! near obstacle per kind (the narrow phases).
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use dkrrt_collision::{clearance, proximity, ArmPoser, ContactPair, Obstacle, PosedCapsule};
@@ -61,5 +62,33 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
+fn narrow(c: &mut Criterion) {
+    let mut rng = SmallRng::seed_from_u64(2);
+    let links: Vec<PosedCapsule> = (0..256)
+        .map(|_| {
+            let a: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let b: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            PosedCapsule::new(a, b, 0.05)
+        })
+        .collect();
+    let q = [0.9, 0.3, -0.2, 0.24];
+    let n = q.iter().map(|x: &f64| x * x).sum::<f64>().sqrt();
+    let q = q.map(|x| x / n);
+    for (name, d) in [
+        ("capsule", DebrisShape::capsule(0.6, 0.03)),
+        ("box", DebrisShape::cuboid([0.5, 0.5, 0.01], [0.0; 3])),
+        ("disc", DebrisShape::disc(0.7, 0.01)),
+    ] {
+        let ob = Obstacle::from_desc(1, &d, 0.0, &[0.2, 0.1, 0.0], &q, 0.05);
+        let mut k = 0;
+        c.bench_function(&format!("narrow_{name}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % links.len();
+                black_box(ob.distance(&links[k]))
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench, narrow);
 criterion_main!(benches);

@@ -21,8 +21,8 @@ pub enum AttitudeChannel {
     /// No attitude dependence (a sphere about the body origin, or an unknown shape that is
     /// its bounding sphere).
     None,
-    /// Only the line of the body z axis (a capsule along z centred on the body origin): its
-    /// spin about the axis and a half turn end over end leave the shape unchanged.
+    /// Only the line of the body z axis (a capsule or a disc about z centred on the body
+    /// origin): its spin about the axis and a half turn end over end leave the shape unchanged.
     Axis,
     /// The full attitude.
     Full,
@@ -33,7 +33,7 @@ pub fn attitude_channel(shape: &DebrisShape) -> AttitudeChannel {
     let o = &shape.offset;
     match ShapeKind::from_u32(shape.kind) {
         Some(ShapeKind::Sphere) if o.iter().all(|v| *v == 0.0) => AttitudeChannel::None,
-        Some(ShapeKind::Capsule) if o.iter().all(|v| *v == 0.0) => AttitudeChannel::Axis,
+        Some(ShapeKind::Capsule | ShapeKind::Disc) if o.iter().all(|v| *v == 0.0) => AttitudeChannel::Axis,
         Some(ShapeKind::Unknown) | None => AttitudeChannel::None,
         _ => AttitudeChannel::Full,
     }
@@ -92,8 +92,11 @@ pub fn surface_excess(
 /// over the true shape is at a ball around an extreme point of the true core (centre, axis
 /// ends, corners): from a point or a segment, that ball's farthest point lies its radius
 /// beyond the point's own distance; from a box, the same for a point outside, and for a
-/// point inside the radius less the point's depth below the nearest face. Exact. With
-/// `pred == truth` it is [`surface_excess`].
+/// point inside the radius less the point's depth below the nearest face; a disc is a solid
+/// too. Exact, but for a true disc, whose extreme points are its two rim circles: they are
+/// taken at [`RIM_POINTS`] points each, so the result may lie below the exact value by as
+/// much as the rim strays from that polygon (`r (1 − cos(π/n))`: 0.008 % of its radius).
+/// With `pred == truth` it is [`surface_excess`].
 #[allow(clippy::too_many_arguments)]
 pub fn shape_excess(
     pred: &DebrisShape,
@@ -123,6 +126,12 @@ pub fn shape_excess(
             [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]],
             *d,
         ),
+        Some(ShapeKind::Disc) => Core::Disc(
+            at(pred, p_pred, q_pred, &[0.0; 3]),
+            [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]],
+            d[0],
+            d[1],
+        ),
         _ => Core::Point(*p_pred, pred_radius),
     };
     let t = &truth.dims;
@@ -140,10 +149,22 @@ pub fn shape_excess(
                 point(at(truth, p_true, q_true, &[s(0), s(1), s(2)]), 0.0);
             }
         }
+        Some(ShapeKind::Disc) => {
+            let n = RIM_POINTS;
+            for k in 0..n {
+                let (sin, cos) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
+                for z in [-t[1], t[1]] {
+                    point(at(truth, p_true, q_true, &[t[0] * cos, t[0] * sin, z]), 0.0);
+                }
+            }
+        }
         _ => point(*p_true, true_radius),
     }
     worst.max(0.0)
 }
+
+/// Points taken on each rim circle of a true disc ([`shape_excess`]).
+pub const RIM_POINTS: usize = 256;
 
 /// A predicted shape as a core swept by a ball ([`shape_excess`]).
 enum Core {
@@ -153,6 +174,8 @@ enum Core {
     Segment([f64; 3], [f64; 3], f64),
     /// Centre, world → body rotation and half extents (a box).
     Solid([f64; 3], [f64; 4], [f64; 3]),
+    /// Centre, world → body rotation, radius and half thickness (a disc about body z).
+    Disc([f64; 3], [f64; 4], f64, f64),
 }
 
 impl Core {
@@ -171,6 +194,16 @@ impl Core {
                     out + r
                 } else {
                     r - (0..3).map(|i| h[i] - l[i].abs()).fold(f64::INFINITY, f64::min)
+                }
+            }
+            Core::Disc(o, qc, rd, hd) => {
+                let l = quat_rotate(qc, &[x[0] - o[0], x[1] - o[1], x[2] - o[2]]);
+                let (rho, z) = (l[0].hypot(l[1]), l[2].abs());
+                let out = (rho - rd).max(0.0).hypot((z - hd).max(0.0));
+                if out > 0.0 {
+                    out + r
+                } else {
+                    r - (rd - rho).min(hd - z)
                 }
             }
         }
@@ -211,6 +244,10 @@ mod tests {
             attitude_channel(&shape(ShapeKind::Box, [1.0, 0.5, 0.1], [0.0; 3])),
             AttitudeChannel::Full
         );
+        assert_eq!(
+            attitude_channel(&shape(ShapeKind::Disc, [0.7, 0.01, 0.0], [0.0; 3])),
+            AttitudeChannel::Axis
+        );
         let rod = shape(ShapeKind::Capsule, [1.0, 0.05, 0.0], [0.0; 3]);
         assert!((surface_sigma(&rod, 1.05, 0.1, 0.9, 0.2) - 0.3).abs() < 1e-12);
         let b = shape(ShapeKind::Box, [1.0, 0.0, 0.0], [0.0; 3]);
@@ -239,6 +276,14 @@ mod tests {
         let s = std::f64::consts::FRAC_1_SQRT_2;
         assert!((surface_excess(&b, &p0, &id, &p0, &[s, 0.0, 0.0, s]) - 0.5).abs() < 1e-9);
         assert!((surface_excess(&b, &p0, &id, &[0.3, 0.0, 0.0], &id) - 0.3).abs() < 1e-12);
+        // Disc of radius 1: turned by θ about y, its rim's lowest point lies sin θ below its
+        // plane (a thin disc); spun about its axis or upside down, nothing moves.
+        let disc = shape(ShapeKind::Disc, [1.0, 1e-9, 0.0], [0.0; 3]);
+        let qy = [(th / 2.0).cos(), 0.0, (th / 2.0).sin(), 0.0];
+        let e = surface_excess(&disc, &p0, &id, &p0, &qy);
+        assert!((e - th.sin()).abs() < 1e-6, "{e}");
+        assert!(surface_excess(&disc, &p0, &id, &p0, &spin) < 1e-9);
+        assert!(surface_excess(&disc, &p0, &id, &p0, &[0.0, 1.0, 0.0, 0.0]) < 1e-9);
         // Sphere: centre distance.
         let sp = shape(ShapeKind::Sphere, [0.4, 0.0, 0.0], [0.0; 3]);
         assert!((surface_excess(&sp, &p0, &id, &[0.0, 0.3, 0.4], &spin) - 0.5).abs() < 1e-12);
@@ -262,6 +307,23 @@ mod tests {
         let slab = shape(ShapeKind::Box, [0.2, 0.3, 0.3], [0.0; 3]);
         let e = shape_excess(&slab, 0.5, &p0, &id, &ball(0.3), 0.3, &[0.1, 0.0, 0.0], &spin_z(0.4));
         assert!((e - 0.2).abs() < 1e-12, "{e}");
+        // A square panel spun any way about its normal stays inside the disc through its
+        // corners; a disc of its half side misses the corners by (√2 − 1)·a.
+        let a = 0.5;
+        let square = shape(ShapeKind::Box, [a, a, 0.005], [0.0; 3]);
+        let disc = |r: f64| shape(ShapeKind::Disc, [r, 0.005, 0.0], [0.0; 3]);
+        for k in 0..12 {
+            let q = spin_z(0.3 * k as f64);
+            assert!(
+                shape_excess(&disc(a * 2f64.sqrt() + 1e-12), 1.0, &p0, &id, &square, 0.71, &p0, &q) < 1e-9
+            );
+        }
+        let e = shape_excess(&disc(a), a, &p0, &id, &square, 0.71, &p0, &id);
+        assert!((e - (2f64.sqrt() - 1.0) * a).abs() < 1e-12, "{e}");
+        // A rod through a disc's centre along its axis sticks out by its half length less the
+        // disc's half thickness (plus its radius).
+        let e = shape_excess(&disc(0.4), 0.4, &p0, &id, &rod, 0.25, &p0, &id);
+        assert!((e - (0.2 + 0.05 - 0.005)).abs() < 1e-12, "{e}");
         // An unknown predicted shape is its bounding sphere.
         let unknown = DebrisShape::default();
         assert!((shape_excess(&unknown, 0.1, &p0, &id, &rod, 0.25, &p0, &id) - 0.15).abs() < 1e-12);
@@ -270,6 +332,7 @@ mod tests {
             shape(ShapeKind::Capsule, [0.8, 0.05, 0.0], [0.0, 0.0, 0.2]),
             shape(ShapeKind::Box, [0.6, 0.3, 0.05], [0.1, -0.2, 0.0]),
             shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3]),
+            shape(ShapeKind::Disc, [0.6, 0.05, 0.0], [0.0; 3]),
         ];
         for (k, sh) in shapes.iter().enumerate() {
             for j in 0..20 {
@@ -295,6 +358,7 @@ mod tests {
             shape(ShapeKind::Capsule, [0.8, 0.05, 0.0], [0.0, 0.0, 0.2]),
             shape(ShapeKind::Box, [0.6, 0.3, 0.05], [0.1, -0.2, 0.0]),
             shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3]),
+            shape(ShapeKind::Disc, [0.6, 0.05, 0.0], [0.0; 3]),
         ];
         let mut seed = 1u64;
         let mut rnd = || {

@@ -6,11 +6,12 @@
 //!   positions `q`, with per-link bounding spheres for the broad phase, and knows each
 //!   joint's lever arm (how fast any link point can move per rad/s of that joint).
 //! * [`Obstacle`] is a shape at a pose: a primitive from the message contract
-//!   ([`DebrisShape`]: sphere, capsule, box with offset) or an exact parry3d shape (the
+//!   ([`DebrisShape`]: sphere, capsule, box with offset, disc) or an exact parry3d shape (the
 //!   simulator's convex hulls), optionally inflated by a radius.
 //! * [`proximity`] measures the smallest separation between the arm and the obstacles, with a
 //!   bounding-sphere broad phase, closed-form narrow phases for spheres, capsules and boxes
-//!   ([`seg_box`]: exact, no iteration) and parry3d (GJK) for the simulator's hulls. [`clearance`] is the same with an early exit below a threshold,
+//!   ([`seg_box`]: exact, no iteration; [`seg_disc`]: a 1-D convex search) and parry3d
+//!   (GJK) for the simulator's hulls. [`clearance`] is the same with an early exit below a threshold,
 //!   for the planner's yes/no checks.
 //!
 //! Everything here is allocation-free (tested with a counting allocator).
@@ -150,6 +151,11 @@ pub enum Geom {
     Cuboid {
         half: [f64; 3],
     },
+    /// A flat cylinder about the local z axis (its radius and half thickness).
+    Disc {
+        r: f64,
+        half: f64,
+    },
     /// Any parry3d shape (exact hulls of the simulator).
     Shape(SharedShape),
 }
@@ -199,6 +205,7 @@ impl Obstacle {
             Some(ShapeKind::Box) => {
                 (Geom::Cuboid { half: d }, (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())
             }
+            Some(ShapeKind::Disc) => (Geom::Disc { r: d[0], half: d[1] }, d[0].hypot(d[1])),
             _ => (Geom::Sphere { r: bounding_radius }, bounding_radius),
         };
         Obstacle { id, geom, p: c, q: *q, bound, inflate }
@@ -245,6 +252,14 @@ impl Obstacle {
                 let a = quat_rotate(&qc, &sub(&c.a, &self.p));
                 let b = quat_rotate(&qc, &sub(&c.b, &self.p));
                 seg_box(&a, &b, half) - c.r
+            }
+            Geom::Disc { r, half } => {
+                // The capsule's axis in the disc's frame, then its distance to the solid disc
+                // less the capsule's radius (negative when they overlap but the axis is outside).
+                let qc = [self.q[0], -self.q[1], -self.q[2], -self.q[3]];
+                let a = quat_rotate(&qc, &sub(&c.a, &self.p));
+                let b = quat_rotate(&qc, &sub(&c.b, &self.p));
+                seg_disc(&a, &b, *r, *half) - c.r
             }
             Geom::Shape(s) => self.parry_distance(c, s.as_ref()),
         };
@@ -472,6 +487,117 @@ pub fn seg_box(a: &[f64; 3], b: &[f64; 3], h: &[f64; 3]) -> f64 {
         best = best.min(d2);
     }
     best.max(0.0).sqrt()
+}
+
+/// Distance from the segment `a`–`b` to the solid disc (flat cylinder) of radius `r` and half
+/// thickness `h` about the z axis at the origin (0 where they meet). The distance from a point
+/// to the disc has a closed form (radial and axial excess), and along the segment it is a
+/// convex function of the segment's parameter (the distance to a convex set): Brent's search
+/// finds its least value to 10⁻¹⁰ of the segment's length (where no closed-form bound is
+/// reached first), no allocation.
+pub fn seg_disc(a: &[f64; 3], b: &[f64; 3], r: f64, h: f64) -> f64 {
+    let d = sub(b, a);
+    let f = |t: f64| {
+        let x = [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]];
+        (x[0].hypot(x[1]) - r).max(0.0).hypot((x[2].abs() - h).max(0.0))
+    };
+    // Two lower bounds that are often reached (then exact, no search): the distance to the
+    // slab |z| ≤ h (the end nearest to it, both ends on one side), where that end lies over
+    // the disc; and the distance to the solid infinite cylinder ρ ≤ r (the point of least ρ),
+    // where that point lies within the slab.
+    if a[2].abs() > h && b[2].abs() > h && a[2].signum() == b[2].signum() {
+        let e = if a[2].abs() <= b[2].abs() { a } else { b };
+        if e[0].hypot(e[1]) <= r {
+            return e[2].abs() - h;
+        }
+    }
+    let dd = d[0] * d[0] + d[1] * d[1];
+    let t = if dd > 0.0 { (-(a[0] * d[0] + a[1] * d[1]) / dd).clamp(0.0, 1.0) } else { 0.0 };
+    let x = [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]];
+    if x[2].abs() <= h && x[0].hypot(x[1]) >= r {
+        return x[0].hypot(x[1]) - r;
+    }
+    // Convex: not falling off an end, the least value is there.
+    let (f0, f1) = (f(0.0), f(1.0));
+    if f(1e-9) >= f0 {
+        return f0;
+    }
+    if f(1.0 - 1e-9) >= f1 {
+        return f1;
+    }
+    f0.min(f1).min(brent_min(f, 1e-10))
+}
+
+/// The least value of `f` on [0, 1] for a unimodal (here convex) `f`, by Brent's method
+/// (golden sections with parabolic steps: a few evaluations for a smooth `f`, never slower
+/// than golden sections), to `tol` in the argument.
+fn brent_min(f: impl Fn(f64) -> f64, tol: f64) -> f64 {
+    const C: f64 = 0.381_966_011_250_105_1;
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    let mut x = a + C * (b - a);
+    let (mut w, mut v) = (x, x);
+    let mut fx = f(x);
+    let (mut fw, mut fv) = (fx, fx);
+    let (mut d, mut e) = (0.0f64, 0.0f64);
+    for _ in 0..100 {
+        if fx == 0.0 {
+            return 0.0;
+        }
+        let m = 0.5 * (a + b);
+        let tol1 = tol * x.abs() + 1e-12;
+        let tol2 = 2.0 * tol1;
+        if (x - m).abs() <= tol2 - 0.5 * (b - a) {
+            break;
+        }
+        let mut golden = true;
+        if e.abs() > tol1 {
+            // A parabola through x, w, v.
+            let r = (x - w) * (fx - fv);
+            let mut q = (x - v) * (fx - fw);
+            let mut p = (x - v) * q - (x - w) * r;
+            q = 2.0 * (q - r);
+            if q > 0.0 {
+                p = -p;
+            }
+            q = q.abs();
+            let e_old = e;
+            if p.abs() < (0.5 * q * e_old).abs() && p > q * (a - x) && p < q * (b - x) {
+                e = d;
+                d = p / q;
+                let u = x + d;
+                if u - a < tol2 || b - u < tol2 {
+                    d = if m >= x { tol1 } else { -tol1 };
+                }
+                golden = false;
+            }
+        }
+        if golden {
+            e = if x >= m { a - x } else { b - x };
+            d = C * e;
+        }
+        let u = if d.abs() >= tol1 { x + d } else { x + if d > 0.0 { tol1 } else { -tol1 } };
+        let fu = f(u);
+        if fu <= fx {
+            if u >= x {
+                a = x;
+            } else {
+                b = x;
+            }
+            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
+        } else {
+            if u < x {
+                a = u;
+            } else {
+                b = u;
+            }
+            if fu <= fw || w == x {
+                (v, fv, w, fw) = (w, fw, u, fu);
+            } else if fu <= fv || v == x || v == w {
+                (v, fv) = (u, fu);
+            }
+        }
+    }
+    fx
 }
 
 /// Distance from point `p` to segment `a`–`b`.

@@ -61,6 +61,60 @@ fn known_distances_for_every_kind() {
     // Unknown shape: the bounding sphere.
     let u = Obstacle::from_desc(4, &DebrisShape::default(), 0.3, &[0.5, 0.0, 1.0], &ID, 0.0);
     assert!((u.distance(&c) - 0.6).abs() < 1e-12);
+    // Disc of radius 0.4, half thickness 0.01, flat at z = 1: gap 1 - 0.01 - 0.1.
+    let d = Obstacle::from_desc(5, &DebrisShape::disc(0.4, 0.01), 0.0, &[0.5, 0.0, 1.0], &ID, 0.0);
+    assert!((d.distance(&c) - 0.89).abs() < 1e-6, "{}", d.distance(&c));
+    // Turned on edge (normal along y): its rim comes down to z = 0.6.
+    let d =
+        Obstacle::from_desc(5, &DebrisShape::disc(0.4, 0.01), 0.0, &[0.5, 0.0, 1.0], &[h, h, 0.0, 0.0], 0.0);
+    assert!((d.distance(&c) - 0.5).abs() < 1e-6, "{}", d.distance(&c));
+    // Beside the link's end, flat: from the end point (1, 0, 0) to the rim at x = 1.5.
+    let d = Obstacle::from_desc(5, &DebrisShape::disc(0.4, 0.01), 0.0, &[1.9, 0.0, 0.0], &ID, 0.05);
+    assert!((d.distance(&c) - (0.5 - 0.1 - 0.05)).abs() < 1e-6, "{}", d.distance(&c));
+}
+
+#[test]
+fn disc_distances_match_brute_force() {
+    // Oriented discs against capsules: the distance equals the least over the segment's
+    // points of the closed-form point–solid-cylinder distance (to the sampling's step), and
+    // is at most 0 where the segment meets the disc.
+    let mut rng = SmallRng::seed_from_u64(6);
+    let mut u = |lo: f64, hi: f64| rng.random_range(lo..hi);
+    let mut touching = 0;
+    for i in 0..1000 {
+        let (rd, hd) = (u(0.05, 1.0), u(0.002, 0.2));
+        let qv = [u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)];
+        let n = qv.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let q = qv.map(|v| v / n);
+        let p = [u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)];
+        let spread = if i % 3 == 0 { 0.5 } else { 2.0 };
+        let a = [u(-spread, spread), u(-spread, spread), u(-spread, spread)];
+        let b = if i % 7 == 0 { a } else { [u(-spread, spread), u(-spread, spread), u(-spread, spread)] };
+        let r = u(0.0, 0.1);
+        let ob = Obstacle::from_desc(1, &DebrisShape::disc(rd, hd), 0.0, &p, &q, 0.0);
+        let ours = ob.distance(&PosedCapsule::new(a, b, r));
+        let qc = [q[0], -q[1], -q[2], -q[3]];
+        let steps = 4000;
+        let brute = (0..=steps)
+            .map(|k| {
+                let t = k as f64 / steps as f64;
+                let x: [f64; 3] = std::array::from_fn(|j| a[j] + t * (b[j] - a[j]) - p[j]);
+                let l = quat_rotate(&qc, &x);
+                let (rho, z) = (l[0].hypot(l[1]), l[2].abs());
+                (rho - rd).max(0.0).hypot((z - hd).max(0.0))
+            })
+            .fold(f64::INFINITY, f64::min)
+            - r;
+        let step =
+            ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2) + (b[2] - a[2]).powi(2)).sqrt() / steps as f64;
+        if brute <= -r + 1e-12 {
+            touching += 1;
+            assert!(ours <= 1e-7, "{i}: the axis meets the disc but {ours}");
+        } else {
+            assert!(ours <= brute + 1e-9 && ours >= brute - step - 1e-9, "{i}: {ours} vs brute {brute}");
+        }
+    }
+    assert!(touching > 50, "crossings exercised: {touching}");
 }
 
 #[test]
@@ -194,9 +248,10 @@ fn scene(rng: &mut SmallRng, n: usize) -> Vec<Obstacle> {
                 let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
                 v.map(|x| x / n)
             };
-            let d = match i % 3 {
+            let d = match i % 4 {
                 0 => DebrisShape::sphere(0.2),
                 1 => DebrisShape::capsule(0.6, 0.03),
+                2 => DebrisShape::disc(0.4, 0.01),
                 _ => DebrisShape::cuboid([0.3, 0.2, 0.01], [0.0; 3]),
             };
             Obstacle::from_desc(i as u32, &d, 0.0, &p, &q, 0.05)

@@ -281,7 +281,8 @@ pub const DEBRIS_PARTIAL: u32 = 2;
 /// were off; restart the object's position and velocity estimate from this one.
 pub const DEBRIS_RESTART: u32 = 4;
 
-/// [`DebrisObs`] flag: `q` measures only the body z axis (a rod's, which a depth view shows):
+/// [`DebrisObs`] flag: `q` measures only the body z axis (a rod's axis or a disc's normal,
+/// which a depth view shows):
 /// its spin about that axis is arbitrary (a front end's bookkeeping, not a measurement), and
 /// so is its sign. The predictor takes the axis only and keeps its own spin.
 pub const DEBRIS_AXIS_ONLY: u32 = 8;
@@ -298,6 +299,11 @@ pub enum ShapeKind {
     Capsule = 2,
     /// Box (also panels, and convex pieces as their body-frame box): `dims` = half extents.
     Box = 3,
+    /// Disc: a flat cylinder about the body z axis, `dims[0]` = radius, `dims[1]` = half
+    /// thickness. What a panel sweeps as it turns in its own plane: a depth front end that sees
+    /// a square panel's normal but not its in-plane attitude reports it so (with
+    /// [`DEBRIS_AXIS_ONLY`]); its spin about z and a half turn end over end leave it unchanged.
+    Disc = 4,
 }
 
 impl ShapeKind {
@@ -307,6 +313,7 @@ impl ShapeKind {
             1 => ShapeKind::Sphere,
             2 => ShapeKind::Capsule,
             3 => ShapeKind::Box,
+            4 => ShapeKind::Disc,
             _ => return None,
         })
     }
@@ -346,6 +353,14 @@ impl DebrisShape {
     pub const fn cuboid(half_extents: [f64; 3], offset: [f64; 3]) -> Self {
         DebrisShape { kind: ShapeKind::Box as u32, _reserved: 0, dims: half_extents, offset }
     }
+    pub const fn disc(radius: f64, half_thickness: f64) -> Self {
+        DebrisShape {
+            kind: ShapeKind::Disc as u32,
+            _reserved: 0,
+            dims: [radius, half_thickness, 0.0],
+            offset: [0.0; 3],
+        }
+    }
     /// The largest distance from the body origin of a surface point that moves under a rotation
     /// about the origin, m: an attitude error θ moves the surface by at most θ times it (a
     /// centred sphere does not move). `Unknown`: the bounding radius.
@@ -356,6 +371,7 @@ impl DebrisShape {
             Some(ShapeKind::Sphere) => o,
             Some(ShapeKind::Capsule) => o + d[0],
             Some(ShapeKind::Box) => o + (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+            Some(ShapeKind::Disc) => o + d[0].hypot(d[1]),
             _ => bounding_radius,
         }
     }
@@ -368,6 +384,7 @@ impl DebrisShape {
             Some(ShapeKind::Sphere) => d[0],
             Some(ShapeKind::Capsule) => d[0] + d[1],
             Some(ShapeKind::Box) => (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+            Some(ShapeKind::Disc) => d[0].hypot(d[1]),
             _ => 0.0,
         }
     }

@@ -264,6 +264,7 @@ impl DebrisShape {
             Some(ShapeKind::Sphere) => 1,
             Some(ShapeKind::Capsule) => 2,
             Some(ShapeKind::Box) => 3,
+            Some(ShapeKind::Disc) => 2,
         };
         finite(field, &self.dims)?;
         finite(field, &self.offset)?;
