@@ -88,7 +88,10 @@ pub fn record_depth(
                 ep.push(
                     ((it.p[0] - x[0]).powi(2) + (it.p[1] - x[1]).powi(2) + (it.p[2] - x[2]).powi(2)).sqrt(),
                 );
-                if matches!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Capsule | ShapeKind::Box)) {
+                if matches!(
+                    ShapeKind::from_u32(it.shape.kind),
+                    Some(ShapeKind::Capsule | ShapeKind::Box | ShapeKind::Disc)
+                ) {
                     let (a, b) = (body_z(&it.q), body_z(&[x[6], x[7], x[8], x[9]]));
                     ea.push((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0).acos());
                 }

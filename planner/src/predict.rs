@@ -153,6 +153,7 @@ pub fn for_depth(cfg: &mut PredictorConfig) {
     cfg.pos_sigma_per_m = DEPTH_POS_SIGMA_PER_M;
     cfg.track_sigmas = 3.0;
     cfg.revive_s = 5.0;
+    cfg.front_end_margin_m = dkrrt_depthpose::perception::ERROR_MARGIN_M;
 }
 
 /// [`dkrrt_predictor::predictor::PredictorConfig::pos_sigma_per_m`] for poses from depth frames.

@@ -5,11 +5,13 @@
 //! Per instance, the [`Extractor`]'s centroid and principal axes, then per object id:
 //! * **Class**, from the largest spread seen per principal axis so far (a tumbling object
 //!   shows its sides in turn; one view can hide an extent): a **rod** when the first spread
-//!   is over 3 times the second, a **panel** when the third is under a fifth of the second,
-//!   else **bulky** (balls, fragments).
+//!   is over 3 times the second, a **panel** when the third is under a fifth of the second
+//!   (a **disc** when its second is at least [`ROUND`] of its first: a square panel, whose
+//!   in-plane axes the spreads do not tell), else **bulky** (balls, fragments).
 //! * **Shape**, from those spreads (points spread evenly over an extent 2a have σ = a/√3; a
 //!   ball's visible cap spreads σ = r/2 sideways): a rod is a capsule of half length √3·σ₀
-//!   and radius 2σ₁ (≥ 2 cm), a panel a box of half extents √3·σ (≥ 1 cm thick), a bulky
+//!   and radius 2σ₁ (≥ 2 cm), a panel a box of half extents √3·σ (≥ 1 cm thick), a disc
+//!   the [`ShapeKind::Disc`] that box sweeps turning about its normal, a bulky
 //!   object a sphere of radius max(2σ₀, √3·|σ|) (a ball, or the corners of a chunky box).
 //! * **Position**: the centroid of the visible surface lies in front of a bulky object's
 //!   centre (a ball's by 2r/3, when its cap's thinnest spread is 0.236 r): it is moved back
@@ -18,7 +20,8 @@
 //! * **Attitude**: a rod's body z is its axis, turned from the last attitude by the smallest
 //!   rotation (the spin about the axis is not observable, so it is not made up; it is
 //!   flagged [`DEBRIS_AXIS_ONLY`]: that spin drifts as the axis turns, and so is no
-//!   measurement); a panel's
+//!   measurement); a disc's body z is its normal, likewise (a view edge-on, which does not
+//!   tell the normal, is not reported); a panel's
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
@@ -29,10 +32,11 @@
 //!   image border** (a pixel on it; [`crate::PoseEstimate::cut`]) with one of its two largest
 //!   spreads under [`WHOLE`] of the largest seen is held back: when no camera of the capture
 //!   shows the object whole, its cut view with the most pixels is reported with the next
-//!   capture, flagged [`DEBRIS_PARTIAL`], with the shape last seen whole, and the attitude
-//!   last seen whole, except a rod's: its axis is the visible part's (a cut or half-hidden
-//!   rod still shows its direction). The predictor takes its position loosely and its
-//!   attitude only if it is a rod's, so an object that
+//!   capture, flagged [`DEBRIS_PARTIAL`], with the shape and attitude last seen whole, except
+//!   a rod's axis and a disc's normal where the visible part defines them (a cut or
+//!   half-hidden rod still shows its direction, a panel its plane): then it is also flagged
+//!   [`DEBRIS_AXIS_ONLY`]. The predictor takes its position loosely and its attitude only
+//!   with that flag, so an object that
 //!   straddles two cameras of a rig, or the edge of a single camera's view, is still tracked.
 //!   A view hidden in part behind something nearer (its outline touches a nearer object or
 //!   the arm: [`crate::PoseEstimate::occluded`]) is treated as a cut one.
@@ -48,8 +52,8 @@
 //!   `dkrrt-visual`): the attitude and the class come from the axes the model reads from the
 //!   view instead: a box (long and short axis seen: body x along the long axis, body z along
 //!   the short one, a cuboid from the spreads), a rod (long axis only: body z, a capsule), a
-//!   disc (short axis only: body z, a square cuboid) or bulky (neither: attitude held, a
-//!   sphere). The class is the model's majority over the views so far.
+//!   disc (short axis only: body z, a [`ShapeKind::Disc`]) or bulky (neither: attitude held,
+//!   a sphere). The class is the model's majority over the views so far.
 //!
 //! Allocation-free after construction.
 
@@ -100,12 +104,23 @@ pub const SHORT_SHARE: f64 = 0.25;
 pub enum Class {
     Rod,
     Panel,
+    /// A panel whose two sides look alike (a square one): its in-plane attitude is not told
+    /// by the points' spreads, so it is reported as the disc it sweeps turning in its plane,
+    /// by its normal alone.
+    Disc,
     Bulky,
 }
 
-/// The default [`DepthPerception::margin_m`]: about twice the median position error of its
-/// observations in `dkrrt predict-eval`'s depth view (3–9 cm), m.
-pub const DEFAULT_MARGIN_M: f64 = 0.15;
+/// A panel is a disc when its second spread is at least this share of its first (its sides
+/// differ by under 1/0.87 ≈ 1.15, where the points' in-plane axes are not told apart).
+pub const ROUND: f64 = 0.87;
+
+/// What this front end's poses and extents may be off by, m: about twice the median position
+/// error of its observations in `dkrrt predict-eval`'s depth view (3–9 cm). The shapes it
+/// reports are its estimates of the bodies, without it; whoever bounds them adds it (the
+/// predictor's `front_end_margin_m` for depth frames grows every published bound by it: a
+/// shape grown by it on every side, its corners rounded).
+pub const ERROR_MARGIN_M: f64 = 0.15;
 
 /// A view whose longest spread is under this share of the longest seen shows the object in
 /// part (cut by the frame, hidden in part, or end-on): its centre would be off.
@@ -140,6 +155,43 @@ struct Known {
     /// A view showed it larger than the reports so far: the next whole report is flagged
     /// [`DEBRIS_RESTART`].
     restart: bool,
+    /// Whole views whose points lie in a plane, and those of them whose two in-plane spreads
+    /// are alike (within [`ROUND`]).
+    round: [u32; 2],
+    /// The sums of those planar views' two in-plane spreads, m.
+    plane_sum: [f64; 2],
+}
+
+impl Known {
+    /// Its class ([`classify`] of the largest spreads seen), a panel's told from a disc's by
+    /// the majority of its whole planar views once it has one: each view's in-plane spreads
+    /// are measured together, while the largest ones seen are each the maximum of noisy
+    /// estimates (a square's 12 pixels across spread by ±10 % from view to view).
+    fn class(&self) -> Class {
+        match classify(&self.spread) {
+            Class::Panel | Class::Disc if self.round[0] > 0 => {
+                if 2 * self.round[1] > self.round[0] {
+                    Class::Disc
+                } else {
+                    Class::Panel
+                }
+            }
+            c => c,
+        }
+    }
+
+    /// The spreads its shape is made from: the largest seen; a disc's in-plane ones the mean
+    /// over its whole planar views (the largest seen of a square's noisy spreads lies 10–20 %
+    /// over its true spread, and a disc's radius takes both).
+    fn shape_spread(&self, c: Class) -> [f64; 3] {
+        match c {
+            Class::Disc if self.round[0] > 0 => {
+                let n = self.round[0] as f64;
+                [self.plane_sum[0] / n, self.plane_sum[1] / n, self.spread[2]]
+            }
+            _ => self.spread,
+        }
+    }
 }
 
 /// Counters.
@@ -168,9 +220,6 @@ pub struct DepthPerception {
     extractor: Extractor,
     est: Box<[PoseEstimate; DEPTH_MAX_INSTANCES]>,
     known: heapless::Vec<Known, MAX_KNOWN>,
-    /// Grown onto every estimated shape (each side): what the front end's pose and extent
-    /// errors may hide, m.
-    pub margin_m: f64,
     pub stats: PerceptionStats,
     model: Option<Box<dyn AxisModel>>,
     /// Capture time of the frames being converted, ns.
@@ -183,7 +232,6 @@ impl Default for DepthPerception {
             extractor: Extractor::default(),
             est: Box::new([PoseEstimate::default(); DEPTH_MAX_INSTANCES]),
             known: heapless::Vec::new(),
-            margin_m: DEFAULT_MARGIN_M,
             stats: PerceptionStats::default(),
             model: None,
             capture_ns: u64::MAX,
@@ -196,39 +244,48 @@ pub fn classify(s: &[f64; 3]) -> Class {
     if s[0] > 3.0 * s[1] {
         Class::Rod
     } else if s[2] < 0.2 * s[1] {
-        Class::Panel
+        if s[1] >= ROUND * s[0] {
+            Class::Disc
+        } else {
+            Class::Panel
+        }
     } else {
         Class::Bulky
     }
 }
 
-/// The shape of class `c` with largest spreads `s`, and its bounding radius.
-pub fn shape_of(c: Class, s: &[f64; 3], margin: f64) -> (DebrisShape, f64) {
+/// The shape of class `c` with largest spreads `s`, and its bounding radius (the body's
+/// estimate: without [`ERROR_MARGIN_M`]).
+pub fn shape_of(c: Class, s: &[f64; 3]) -> (DebrisShape, f64) {
     let r3 = 3f64.sqrt();
-    let m = margin;
     match c {
         Class::Rod => {
-            let (h, r) = (r3 * s[0], (2.0 * s[1]).max(0.02) + m);
+            let (h, r) = (r3 * s[0], (2.0 * s[1]).max(0.02));
             (DebrisShape::capsule(h, r), h + r)
         }
         Class::Panel => {
-            let e = [r3 * s[0] + m, r3 * s[1] + m, (r3 * s[2]).max(0.01) + m];
+            let e = [r3 * s[0], r3 * s[1], (r3 * s[2]).max(0.01)];
             (DebrisShape::cuboid(e, [0.0; 3]), (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+        }
+        Class::Disc => {
+            // The panel's corners, √3·s out along each side, swept about its normal.
+            let (r, h) = ((r3 * s[0]).hypot(r3 * s[1]), (r3 * s[2]).max(0.01));
+            (DebrisShape::disc(r, h), r.hypot(h))
         }
         Class::Bulky => {
             // A ball's cap spreads r/2; a chunky box's faces spread about its half extents
             // over √3, so its corners lie √3·|σ| out: the sphere covers either.
             let corner = r3 * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
-            let r = (2.0 * s[0]).max(corner).max(0.01) + m;
+            let r = (2.0 * s[0]).max(corner).max(0.01);
             (DebrisShape::sphere(r), r)
         }
     }
 }
 
 /// Whether a report of `shape` measures only its body z axis ([`DEBRIS_AXIS_ONLY`]): a rod's
-/// (a capsule).
+/// (a capsule) or a disc's.
 fn axis_only(shape: &DebrisShape) -> bool {
-    shape.kind == ShapeKind::Capsule as u32
+    shape.kind == ShapeKind::Capsule as u32 || shape.kind == ShapeKind::Disc as u32
 }
 
 impl DepthPerception {
@@ -317,24 +374,37 @@ impl DepthPerception {
                 let better =
                     kn.pending.is_none_or(|(o, px)| o.t_meas_ns != img.header.stamp_ns || px < e.points);
                 if better {
-                    let (shape, radius) =
-                        kn.shape.unwrap_or_else(|| shape_of(classify(&kn.spread), &kn.spread, self.margin_m));
-                    let p = visible_centre(&e, &cam, classify(&kn.spread));
-                    // A rod cut or hidden in part still shows its direction: its axis from the
-                    // visible part, where that defines one (module docs).
-                    let rod = shape.kind == ShapeKind::Capsule as u32;
-                    let q = if rod && e.spread[0] > PCA_DEFINED * e.spread[1] {
-                        rod_attitude(&kn.q, &e.axes[0])
-                    } else {
-                        kn.q
+                    let (shape, radius) = kn.shape.unwrap_or_else(|| {
+                        let c = kn.class();
+                        shape_of(c, &kn.shape_spread(c))
+                    });
+                    let p = visible_centre(&e, &cam, kn.class());
+                    // A rod cut or hidden in part still shows its direction, a disc its
+                    // normal: from the visible part, where that defines it (module docs);
+                    // otherwise the report carries no attitude.
+                    let seen = match ShapeKind::from_u32(shape.kind) {
+                        Some(ShapeKind::Capsule) if e.spread[0] > PCA_DEFINED * e.spread[1] => {
+                            Some(align(&kn.q, 2, &e.axes[0]))
+                        }
+                        Some(ShapeKind::Disc) if e.spread[1] > PCA_DEFINED * e.spread[2] => {
+                            Some(align(&kn.q, 2, &e.axes[2]))
+                        }
+                        _ => None,
                     };
-                    let o = item(id, DEBRIS_PARTIAL, img.header.stamp_ns, p, q, (shape, radius));
+                    let flags = DEBRIS_PARTIAL | if seen.is_some() { DEBRIS_AXIS_ONLY } else { 0 };
+                    let q = seen.unwrap_or(kn.q);
+                    let o = item(id, flags, img.header.stamp_ns, p, q, (shape, radius));
                     kn.pending = Some((o, e.points));
                 }
                 continue;
             }
-            kn.last_t_ns = img.header.stamp_ns;
-            let classical = classify(&kn.spread);
+            if e.spread[1] > PCA_DEFINED * e.spread[2] && e.spread[2] < 0.2 * e.spread[1] {
+                kn.round[0] += 1;
+                kn.round[1] += (e.spread[1] >= ROUND * e.spread[0]) as u32;
+                kn.plane_sum[0] += e.spread[0];
+                kn.plane_sum[1] += e.spread[1];
+            }
+            let classical = kn.class();
             let (shape, radius);
             // The model reads views as large as those it learned from; the class of an object it
             // has read is the model's, its attitude from the model's axes or, in a smaller view,
@@ -355,10 +425,17 @@ impl DepthPerception {
                 let thin = sp[0] > THIN * sp[1];
                 let (long, short) = (thin || share(1) >= LONG_SHARE, !thin && share(2) >= SHORT_SHARE);
                 (shape, radius) = match (long, short) {
-                    (true, true) => shape_of(Class::Panel, sp, self.margin_m),
-                    (true, false) => shape_of(Class::Rod, sp, self.margin_m),
-                    (false, true) => shape_of(Class::Panel, &[sp[0], sp[0], sp[2]], self.margin_m),
-                    (false, false) => shape_of(Class::Bulky, sp, self.margin_m),
+                    (true, true) => shape_of(Class::Panel, sp),
+                    (true, false) => shape_of(Class::Rod, sp),
+                    (false, true) => {
+                        let ds = if kn.round[0] > 0 {
+                            kn.shape_spread(Class::Disc)
+                        } else {
+                            [sp[0], sp[0], sp[2]]
+                        };
+                        shape_of(Class::Disc, &ds)
+                    }
+                    (false, false) => shape_of(Class::Bulky, sp),
                 };
                 // An axis the model did not read in this view: the points' principal axis,
                 // where they define it.
@@ -379,16 +456,29 @@ impl DepthPerception {
                     (true, true, None, Some(c)) => align(&kn.q, 2, &c),
                     (true, false, Some(a), _) => align(&kn.q, 2, &a),
                     (false, true, _, Some(c)) => align(&kn.q, 2, &c),
+                    (false, true, _, None) => {
+                        // A disc edge-on: the view does not tell its normal; the predictor
+                        // coasts.
+                        self.stats.partial += 1;
+                        continue;
+                    }
                     _ => kn.q,
                 };
             } else {
-                (shape, radius) = shape_of(classical, &kn.spread, self.margin_m);
+                (shape, radius) = shape_of(classical, &kn.shape_spread(classical));
                 kn.q = match classical {
                     Class::Rod => rod_attitude(&kn.q, &e.axes[0]),
                     Class::Panel => nearest_frame(&kn.q, &e.axes[0], &e.axes[1]),
+                    Class::Disc if e.spread[1] > PCA_DEFINED * e.spread[2] => align(&kn.q, 2, &e.axes[2]),
+                    Class::Disc => {
+                        // Edge-on: the points do not tell its normal; the predictor coasts.
+                        self.stats.partial += 1;
+                        continue;
+                    }
                     Class::Bulky => kn.q,
                 };
             }
+            kn.last_t_ns = img.header.stamp_ns;
             let p = visible_centre(&e, &cam, classical);
             kn.shape = Some((shape, radius));
             kn.pending = None;
@@ -418,6 +508,8 @@ impl DepthPerception {
             shape: None,
             pending: None,
             restart: false,
+            round: [0; 2],
+            plane_sum: [0.0; 2],
         };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
@@ -438,9 +530,10 @@ fn item(
     q: [f64; 4],
     (shape, radius): (DebrisShape, f64),
 ) -> DebrisObs {
-    // A rod's attitude is its axis (module docs): the spin about it is the front end's
-    // bookkeeping.
-    let flags = if axis_only(&shape) { flags | DEBRIS_AXIS_ONLY } else { flags };
+    // A rod's attitude is its axis, a disc's its normal (module docs): the spin about it is
+    // the front end's bookkeeping. A partial view says itself whether it shows that axis.
+    let flags =
+        if axis_only(&shape) && flags & DEBRIS_PARTIAL == 0 { flags | DEBRIS_AXIS_ONLY } else { flags };
     DebrisObs { id, flags, t_meas_ns: t_ns, p, q, v: [0.0; 3], w: [0.0; 3], bounding_radius: radius, shape }
 }
 

@@ -67,6 +67,12 @@ pub struct PredictorConfig {
     /// object every frame); poses from depth frames: objects pass behind the arm and out of
     /// the views.
     pub revive_s: f64,
+    /// What the observed poses and shapes may be off by beyond the filter's noise (a
+    /// perception front end's error margin: its shapes are its estimates of the bodies),
+    /// m: added to every published position bound, so the published shape grown by the bound
+    /// holds the body. 0: the pose sensor (its shapes are the true ones); poses from depth
+    /// frames: the front end's margin.
+    pub front_end_margin_m: f64,
     /// Position noise of a partial view ([`Observation::partial`]) per metre of the object's
     /// size: its centroid can lie anywhere on the object. Its attitude is not used.
     pub partial_sigma_per_m: f64,
@@ -127,6 +133,7 @@ impl Default for PredictorConfig {
             pos_sigma_per_m: 0.0,
             track_sigmas: 0.0,
             revive_s: 0.0,
+            front_end_margin_m: 0.0,
             partial_sigma_per_m: 0.3,
             event_min_obs: 25,
             min_obs_for_forecast: 5,
@@ -653,9 +660,9 @@ impl DebrisPredictor {
         // Physical plausibility gate against the last accepted observation.
         let dt_obs = o.t - tr.filter.t;
         let dp = (0..3).map(|i| (o.p[i] - tr.last_obs_p[i]).powi(2)).sum::<f64>().sqrt();
-        // A partial view measures a rod's attitude (its axis: a cut or half-hidden rod still
-        // shows its direction; the spin about it is no shape's business), nothing else's.
-        let att_measured = !o.partial || tr.symmetry.axial();
+        // A partial view measures an axis where the front end says it shows one (a rod's: a
+        // cut or half-hidden rod still shows its direction; a disc's normal), nothing else.
+        let att_measured = !o.partial || o.axis_only;
         let da = match (att_measured, o.axis_only) {
             (false, _) => 0.0,
             (true, true) => {
@@ -925,6 +932,9 @@ impl DebrisPredictor {
                     let own = self.cfg.track_sigmas * tr.filter.pos_std(fc, s as f64 * buf.dt);
                     buf.pos_radius[o] = buf.pos_radius[o].max(own);
                 }
+            }
+            if self.cfg.front_end_margin_m > 0.0 {
+                buf.pos_radius[k * hb..k * hb + h].iter_mut().for_each(|r| *r += self.cfg.front_end_margin_m);
             }
             if tr.n_obs >= self.cfg.calib_min_obs {
                 tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);

@@ -42,7 +42,7 @@ impl Symmetry {
 
     /// The discrete turns of `shape`: a box centred on its body origin, its half turns about
     /// the body axes times its quarter turns about an axis whose other two half extents agree
-    /// within 1 %; a capsule, its end-for-end turn (half turn about body x); anything else
+    /// within 1 %; a capsule or a disc, its end-for-end turn (half turn about body x); anything else
     /// (a sphere, whose attitude does not matter, an off-centre box, unknown) none.
     pub fn of(shape: &DebrisShape) -> Symmetry {
         let mut s = Symmetry::NONE;
@@ -64,7 +64,7 @@ impl Symmetry {
                     }
                 }
             }
-            Some(ShapeKind::Capsule) => {
+            Some(ShapeKind::Capsule | ShapeKind::Disc) => {
                 s.g[1] = HALF[1];
                 s.n = 2;
             }
@@ -73,8 +73,8 @@ impl Symmetry {
         s
     }
 
-    /// Whether the shape is a capsule's: symmetric about its body z axis, so its attitude is
-    /// that axis.
+    /// Whether the shape is a capsule's or a disc's: symmetric about its body z axis, so its
+    /// attitude is that axis.
     pub fn axial(&self) -> bool {
         self.n == 2
     }
@@ -133,7 +133,7 @@ pub fn on_axis(q: &[f64; 4], reference: &[f64]) -> [f64; 4] {
 }
 
 /// The angle between attitudes `q` and `truth` (w, x, y, z) modulo the symmetry of `shape`
-/// (its body frame): 0 for a sphere; for a capsule the angle between the body z axes,
+/// (its body frame): 0 for a sphere; for a capsule or a disc the angle between the body z axes,
 /// sign-free; for a centred box the least angle over its [`Symmetry`] turns; otherwise
 /// (unknown, or an off-centre box) the full angle. No camera can tell these attitudes apart,
 /// and they are the same shape to a planner.
@@ -141,7 +141,7 @@ pub fn symmetric_angle(q: &[f64], truth: &[f64], shape: &DebrisShape) -> f64 {
     let t = [truth[0], truth[1], truth[2], truth[3]];
     match ShapeKind::from_u32(shape.kind) {
         Some(ShapeKind::Sphere) => 0.0,
-        Some(ShapeKind::Capsule) => {
+        Some(ShapeKind::Capsule | ShapeKind::Disc) => {
             crate::axis::line_angle(&crate::axis::body_z(q), &crate::axis::body_z(&t))
         }
         _ => Symmetry::of(shape)
@@ -217,8 +217,14 @@ mod tests {
     }
 
     #[test]
-    fn a_capsule_is_measured_by_its_axis() {
-        let shape = DebrisShape::capsule(1.0, 0.05);
+    fn a_capsule_or_a_disc_is_measured_by_its_axis() {
+        for shape in [DebrisShape::capsule(1.0, 0.05), DebrisShape::disc(0.7, 0.01)] {
+            capsule_or_disc(shape);
+        }
+    }
+
+    fn capsule_or_disc(shape: DebrisShape) {
+        assert!(Symmetry::of(&shape).axial());
         let truth = axis_angle([0.0, 0.6, 0.8], 0.7);
         let spun = quat_mul(&truth, &axis_angle([0.0, 0.0, 1.0], 2.0));
         assert!(symmetric_angle(&spun, &truth, &shape) < 1e-7);

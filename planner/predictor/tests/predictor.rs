@@ -455,9 +455,9 @@ fn a_forecast_nobody_reads_can_be_left_to_its_calibration() {
 
 /// A partial view (`Observation::partial`: an object cut by a camera's frame) moves the
 /// position estimate only loosely (its noise is `partial_sigma_per_m` of the object's size),
-/// leaves the attitude of anything but a rod to the prediction (a 90° turn in it is neither
-/// gated nor taken) and trips no manoeuvre; the same pose seen whole pulls the estimate most
-/// of the way. A rod's partial view still measures its axis.
+/// leaves the attitude to the prediction (a 90° turn in it is neither gated nor taken) and
+/// trips no manoeuvre; the same pose seen whole pulls the estimate most of the way. A rod's
+/// or a disc's partial view that shows its axis (flagged `axis_only`) measures that axis.
 #[test]
 fn a_partial_view_moves_the_position_loosely_and_leaves_the_attitude() {
     let run = |partial: bool| {
@@ -484,19 +484,32 @@ fn a_partial_view_moves_the_position_loosely_and_leaves_the_attitude() {
     assert!(moved_partial > 0.0 && moved_partial < 0.01, "a partial view pulls loosely: {moved_partial}");
     assert!(turned < 1e-9, "the attitude is not measured: turned {turned}");
     assert_eq!((n_whole, n_partial, manoeuvres), (0, 1, 0));
-    // A rod: the axis of its partial view, tilted 0.1 rad, pulls the attitude.
-    let mut pr = cv_predictor();
-    let q0 = [1.0, 0.0, 0.0, 0.0];
-    for k in 0..40 {
-        pr.observe(&obs(4, k as f64 * 0.05, [2.0, 0.0, 0.0], q0));
-        pr.set_shape(4, &dkrrt_msg::DebrisShape::capsule(0.9, 0.1));
+    // A rod or a disc: the axis of its partial view, tilted 0.1 rad, pulls the attitude when
+    // the view says it shows it (`axis_only`), and not otherwise.
+    for shape in [dkrrt_msg::DebrisShape::capsule(0.9, 0.1), dkrrt_msg::DebrisShape::disc(0.9, 0.01)] {
+        for shows_axis in [true, false] {
+            let mut pr = cv_predictor();
+            let q0 = [1.0, 0.0, 0.0, 0.0];
+            for k in 0..40 {
+                pr.observe(&obs(4, k as f64 * 0.05, [2.0, 0.0, 0.0], q0));
+                pr.set_shape(4, &shape);
+            }
+            let tilt = [0.05f64.cos(), 0.05f64.sin(), 0.0, 0.0];
+            let mut o = obs(4, 2.0, [2.0, 0.0, 0.0], tilt);
+            o.partial = true;
+            o.axis_only = shows_axis;
+            assert_eq!(pr.observe(&o), ObserveOutcome::Accepted);
+            let turned = quat_angle(&pr.track(4).unwrap().state[6..10], &q0);
+            if shows_axis {
+                assert!(
+                    turned > 0.02 && turned <= 0.1 + 1e-9,
+                    "{shape:?}: the axis is measured: turned {turned}"
+                );
+            } else {
+                assert!(turned < 1e-9, "{shape:?}: no axis shown, none measured: turned {turned}");
+            }
+        }
     }
-    let tilt = [0.05f64.cos(), 0.05f64.sin(), 0.0, 0.0];
-    let mut o = obs(4, 2.0, [2.0, 0.0, 0.0], tilt);
-    o.partial = true;
-    assert_eq!(pr.observe(&o), ObserveOutcome::Accepted);
-    let turned = quat_angle(&pr.track(4).unwrap().state[6..10], &q0);
-    assert!(turned > 0.02 && turned <= 0.1 + 1e-9, "a rod's axis is measured: turned {turned}");
 }
 
 /// A sensor that sees only the shape (a depth camera's front end) reports a box's attitude up
@@ -636,4 +649,31 @@ fn an_axis_only_report_is_tracked_by_its_axis_whatever_its_spin() {
     assert!(worst < 0.05, "the axis follows the truth: {worst} rad off");
     let (jumps_full, _, _) = run(false);
     assert!(jumps_full >= 30, "taken as full attitudes the reports jump: {jumps_full}");
+}
+
+/// A front end's error margin (`front_end_margin_m`: its shapes are its estimates of the
+/// bodies) grows every published position bound by exactly that much, and nothing else.
+#[test]
+fn the_front_ends_margin_grows_every_published_position_bound() {
+    let run = |margin: f64| {
+        let cfg = PredictorConfig { front_end_margin_m: margin, ..PredictorConfig::default() };
+        let mut pr = DebrisPredictor::new(Models::constant_velocity(0.1, 40, 0.0, 0.05, 0.05), cfg);
+        for k in 0..60 {
+            let t = k as f64 * 0.05;
+            let (p, q) = pose(t);
+            pr.observe(&obs(2, t, p, q));
+        }
+        let mut buf = ForecastBuffer::for_predictor(&pr);
+        pr.forecast(&mut buf);
+        assert_eq!(buf.len(), 1);
+        let pos: Vec<f64> = (1..=40).map(|k| buf.pos_radius(0, k)).collect();
+        let att: Vec<f64> = (1..=40).map(|k| buf.att_radius(0, k)).collect();
+        (pos, att, buf.state(0, 20).to_vec())
+    };
+    let (p0, a0, x0) = run(0.0);
+    let (p1, a1, x1) = run(0.15);
+    for k in 0..40 {
+        assert!((p1[k] - p0[k] - 0.15).abs() < 1e-12, "step {}: {} vs {}", k + 1, p1[k], p0[k]);
+    }
+    assert_eq!((a0, x0), (a1, x1));
 }

@@ -403,19 +403,11 @@ impl Replanner {
                 let gc: Vec<String> = [0.0, 1.0, 2.0, 3.0, 4.0, 6.0]
                     .iter()
                     .map(|dt| {
-                        format!(
-                            "{:.2}",
-                            self.planner.checker.clearance_at(
-                                &self.world,
-                                &g,
-                                t_now + dt,
-                                0.0,
-                                f64::NEG_INFINITY
-                            )
-                        )
+                        let n = self.planner.checker.nearest_at(&self.world, &g, t_now + dt);
+                        n.map_or("-".into(), |(id, c)| format!("{c:.2}#{id}"))
                     })
                     .collect();
-                eprintln!("  goal clearance at +0,1,2,3,4,6: {gc:?}");
+                eprintln!("  goal clearance (nearest) at +0,1,2,3,4,6: {gc:?}");
             }
             for i in 0..self.world.len() {
                 let (p, _, s, _, sph) = self.world.pose_at(i, t_now + 6.0);

@@ -33,12 +33,14 @@ pub struct Observation {
     /// Whether `v` and `w` are filled.
     pub has_rates: bool,
     /// From a partial view (a camera's object cut by the frame or hidden in part): `p` is
-    /// good only to about the object's size, `q` is measured only for a rod (its axis).
+    /// good only to about the object's size, `q` is measured only with `axis_only` (a rod's
+    /// axis or a disc's normal from the visible part).
     pub partial: bool,
     /// The earlier records of this object came from views of part of it (`DEBRIS_RESTART`):
     /// its position and velocity estimate restarts from this one.
     pub restart: bool,
-    /// `q` measures only the body z axis (`DEBRIS_AXIS_ONLY`: a rod seen by a camera): its
+    /// `q` measures only the body z axis (`DEBRIS_AXIS_ONLY`: a rod's axis or a disc's normal
+    /// seen by a camera): its
     /// spin about the axis and its sign are arbitrary.
     pub axis_only: bool,
     /// Sample sequence number (same for all records of one sample instant).
