@@ -844,12 +844,13 @@ pub fn summary(r: &Value) -> String {
             s += &format!("  predictor ({method})  no statistics (the process did not finish)\n");
         } else {
             s += &format!(
-                "  predictor ({method})  forecasts {} at {} Hz   compute us p50 {} p99 {}   rejected obs {}\n",
+                "  predictor ({method})  forecasts {} at {} Hz   compute us p50 {} p99 {}   rejected obs {}   frames lost {}\n",
                 r["predictor"]["forecasts"],
                 f("/predictor/forecast_rate_hz"),
                 f("/predictor/forecast_compute_us/p50"),
                 f("/predictor/forecast_compute_us/p99"),
-                r["predictor"]["rejected_observations"]
+                r["predictor"]["rejected_observations"],
+                r.pointer("/predictor_stats/observations/frames_lost").map_or("n/a".into(), |v| v.to_string())
             );
         }
     }

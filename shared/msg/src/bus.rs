@@ -77,7 +77,9 @@ topic!(DebrisObservation, "dkrrt/debris_observation", OBSERVATION_BUFFER);
 topic!(DebrisForecast, "dkrrt/debris_forecast");
 topic!(PlanStatus, "dkrrt/plan_status");
 topic!(PredictorProgress, "dkrrt/predictor_progress");
-topic!(DepthImage, "dkrrt/depth_image");
+// Every frame of a capture matters too: a rig publishes one per face (six) at once, and the
+// predictor reads them every 20 ms; 16 frames hold two captures and a late read.
+topic!(DepthImage, "dkrrt/depth_image", DEPTH_BUFFER);
 
 /// QoS shared by all services (open_or_create needs the same values everywhere).
 pub const MAX_PUBLISHERS: usize = 8;
@@ -87,6 +89,8 @@ pub const MAX_NODES: usize = 16;
 pub const SUBSCRIBER_BUFFER: usize = 4;
 /// Subscriber buffer of the debris observation stream.
 pub const OBSERVATION_BUFFER: usize = 16;
+/// Subscriber buffer of the depth camera's frames (a cube rig sends six per capture).
+pub const DEPTH_BUFFER: usize = 16;
 /// Late subscribers receive the last sample (the active trajectory or goal).
 pub const HISTORY: usize = 1;
 
