@@ -717,21 +717,25 @@ fn a_goal_message_retargets_a_run_without_debris() {
     let _ = std::fs::remove_file(rp);
 }
 
-/// `predictor.input = "depth"` (which turns the camera on): the sim renders the depth camera
-/// on the plant clock and publishes its frames (`dkrrt/depth_image`), the predictor process
-/// reads them through the depth front end, the run stays ok, and the lockstep process set
-/// makes the forecasts the in-process lockstep makes.
-#[test]
-fn the_depth_camera_feeds_the_predictor_process_on_the_plant_clock() {
-    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+/// The default scenario seeing through the depth camera (`faces` of them: 1, or a cube rig of
+/// 6), capturing at 10 Hz.
+fn depth_scenario(faces: usize) -> String {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/default.toml"))
             .unwrap()
             .replace("input = \"poses\"", "input = \"depth\"")
+            .replace("faces = 1 ", &format!("faces = {faces} "))
             .replace("rate_hz = 20.0 ", "rate_hz = 10.0 ");
-    let sc_path = std::env::temp_dir().join(format!("dkrrt-e2e-camera-{}.toml", std::process::id()));
-    std::fs::write(&sc_path, &text).unwrap();
-    let rp = report_path("camera");
+    assert!(text.contains(&format!("faces = {faces} ")) && text.contains("input = \"depth\""));
+    text
+}
+
+/// `dkrrt launch --mode lockstep` of the scenario `text`: its report (checked `ok`) and what
+/// it printed.
+fn launch_lockstep(text: &str, tag: &str) -> (Value, String) {
+    let sc_path = std::env::temp_dir().join(format!("dkrrt-e2e-{tag}-{}.toml", std::process::id()));
+    std::fs::write(&sc_path, text).unwrap();
+    let rp = report_path(tag);
     let out = Command::new(exe())
         .args(["launch", "--mode", "lockstep", "--scenario"])
         .arg(&sc_path)
@@ -743,6 +747,18 @@ fn the_depth_camera_feeds_the_predictor_process_on_the_plant_clock() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r = read_report(&rp);
     assert_eq!(r["ok"], true, "{:#}", r["checks"]);
+    (r, String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// `predictor.input = "depth"` (which turns the camera on): the sim renders the depth camera
+/// on the plant clock and publishes its frames (`dkrrt/depth_image`), the predictor process
+/// reads them through the depth front end, the run stays ok, and the lockstep process set
+/// makes the forecasts the in-process lockstep makes.
+#[test]
+fn the_depth_camera_feeds_the_predictor_process_on_the_plant_clock() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let text = depth_scenario(1);
+    let (r, stdout) = launch_lockstep(&text, "camera");
     let dur = num(&r, "/duration_s");
     // A capture every 0.1 s of plant time from t = 0; the last 30 ms of captures (the
     // latency) may still be in flight at the end.
@@ -752,8 +768,7 @@ fn the_depth_camera_feeds_the_predictor_process_on_the_plant_clock() {
     assert!(frames == captured || frames == captured - 1.0, "{:#}", r["camera"]);
     assert_eq!(num(&r, "/camera/overrun"), 0.0);
     assert!(num(&r, "/camera/render_us/max") > 0.0);
-    let text_out = String::from_utf8_lossy(&out.stdout);
-    assert!(text_out.contains("camera") && text_out.contains("dkrrt/depth_image"), "{text_out}");
+    assert!(stdout.contains("camera") && stdout.contains("dkrrt/depth_image"), "{stdout}");
     // The same forecasts as in process.
     let mut sc = dkrrt_config::Scenario::from_toml_str(&text, "camera.toml").unwrap();
     dkrrt_episodes::resolve(&mut sc).unwrap();
@@ -772,27 +787,7 @@ fn the_depth_camera_feeds_the_predictor_process_on_the_plant_clock() {
 #[test]
 fn a_cube_rigs_six_frames_per_capture_all_reach_the_predictor_process() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/default.toml"))
-            .unwrap()
-            .replace("input = \"poses\"", "input = \"depth\"")
-            .replace("faces = 1 ", "faces = 6 ")
-            .replace("rate_hz = 20.0 ", "rate_hz = 10.0 ");
-    assert!(text.contains("faces = 6 "));
-    let sc_path = std::env::temp_dir().join(format!("dkrrt-e2e-rig-{}.toml", std::process::id()));
-    std::fs::write(&sc_path, &text).unwrap();
-    let rp = report_path("rig");
-    let out = Command::new(exe())
-        .args(["launch", "--mode", "lockstep", "--scenario"])
-        .arg(&sc_path)
-        .arg("--report")
-        .arg(&rp)
-        .output()
-        .unwrap();
-    let _ = std::fs::remove_file(&sc_path);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let r = read_report(&rp);
-    assert_eq!(r["ok"], true, "{:#}", r["checks"]);
+    let (r, _) = launch_lockstep(&depth_scenario(6), "rig");
     let (captured, frames) = (num(&r, "/camera/captured"), num(&r, "/camera/frames"));
     // Six frames per capture (`captured` counts frames); the last capture's may be in flight.
     assert!(captured % 6.0 == 0.0 && captured > 60.0, "{:#}", r["camera"]);
