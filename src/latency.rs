@@ -666,7 +666,6 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
             .unwrap_or_default()
     };
     let mut ipc = Vec::new();
-    let sizes = SIZES;
     for (i, name) in TYPES.iter().enumerate() {
         let leg = |echo: &LegFigures, ping: &LegHists| {
             json!({
@@ -679,7 +678,7 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
         };
         ipc.push(json!({
             "type": name,
-            "bytes": sizes[i],
+            "bytes": SIZES[i],
             "bus": leg(&echo_rep.bus[i], &ping_bus[i]),
             "raw": leg(&echo_rep.raw[i], &ping_raw[i]),
         }));
@@ -732,7 +731,7 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
         .iter()
         .enumerate()
         .map(|(i, name)| dkrrt_figures::CurvePanel {
-            title: format!("{name} ({} B) one-way", sizes[i]),
+            title: format!("{name} ({} B) one-way", SIZES[i]),
             y_label: "latency [us]".into(),
             curves: vec![
                 dkrrt_figures::Curve {
@@ -798,8 +797,8 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
     println!("{}", row("tracker wake-up (process set)", &tr_wake));
     println!("{}", row("state -> command (process set)", &s2c));
     for (i, name) in TYPES.iter().enumerate() {
-        println!("{}", row(&format!("{name} ({} B) one-way, bus", sizes[i]), &echo_rep.bus[i].one_way_us));
-        println!("{}", row(&format!("{name} ({} B) one-way, raw", sizes[i]), &echo_rep.raw[i].one_way_us));
+        println!("{}", row(&format!("{name} ({} B) one-way, bus", SIZES[i]), &echo_rep.bus[i].one_way_us));
+        println!("{}", row(&format!("{name} ({} B) one-way, raw", SIZES[i]), &echo_rep.raw[i].one_way_us));
         println!("{}", row(&format!("{name} round trip, bus"), &ping_bus[i].round_trip.percentiles_us()));
         println!("{}", row(&format!("{name} round trip, raw"), &ping_raw[i].round_trip.percentiles_us()));
     }
