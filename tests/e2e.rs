@@ -717,14 +717,14 @@ fn a_goal_message_retargets_a_run_without_debris() {
     let _ = std::fs::remove_file(rp);
 }
 
-/// The default scenario seeing through the depth camera (`faces` of them: 1, or a cube rig of
-/// 6), capturing at 10 Hz.
+/// The default scenario seeing through the depth cameras (`faces` of them: 1, or the default
+/// cube rig of 6), capturing at 10 Hz.
 fn depth_scenario(faces: usize) -> String {
     let text =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/default.toml"))
             .unwrap()
             .replace("input = \"poses\"", "input = \"depth\"")
-            .replace("faces = 1 ", &format!("faces = {faces} "))
+            .replace("faces = 6 ", &format!("faces = {faces} "))
             .replace("rate_hz = 20.0 ", "rate_hz = 10.0 ");
     assert!(text.contains(&format!("faces = {faces} ")) && text.contains("input = \"depth\""));
     text

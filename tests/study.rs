@@ -178,12 +178,12 @@ fn a_study_builds_its_episodes_on_the_scenario_file_it_is_given() {
     let (sc, ep) = dkrrt::study::episode_scenario(&base, "dense", 0, 5, false).unwrap();
     let (plain, plain_ep) =
         dkrrt::study::episode_scenario(&dkrrt::study::base_scenario(), "dense", 0, 5, false).unwrap();
-    assert_eq!(sc.camera.faces, 6);
-    assert_eq!(plain.camera.faces, 1);
+    assert_eq!((sc.camera.faces, sc.predictor.input.as_str()), (6, "depth"));
+    assert_eq!(plain.predictor.input, "poses");
     assert_eq!(ep.straight_duration_s, plain_ep.straight_duration_s, "the same episode on either base");
     assert_eq!((ep.start, ep.goal), (plain_ep.start, plain_ep.goal));
     // Without a file: the embedded default.
-    assert_eq!(dkrrt::study::base_scenario_of(&opts(None)).unwrap().camera.faces, 1);
+    assert_eq!(dkrrt::study::base_scenario_of(&opts(None)).unwrap().predictor.input, "poses");
     // A file that is not there is named, before anything runs.
     let missing = std::env::temp_dir().join(format!("dkrrt-no-such-{}.toml", std::process::id()));
     let e = dkrrt::study::base_scenario_of(&opts(Some(missing.to_str().unwrap()))).unwrap_err();

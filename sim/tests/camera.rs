@@ -36,7 +36,7 @@ fn exact() -> CameraConfig {
         noise_quad_per_m: 0.0,
         dropout: 0.0,
         range_max_m: 40.0,
-        ..CameraConfig::default()
+        ..CameraConfig::single()
     }
 }
 

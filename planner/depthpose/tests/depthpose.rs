@@ -44,7 +44,7 @@ fn unit(a: [f64; 3]) -> [f64; 3] {
 }
 
 fn exact() -> CameraConfig {
-    CameraConfig { noise_base_m: 0.0, noise_quad_per_m: 0.0, dropout: 0.0, ..CameraConfig::default() }
+    CameraConfig { noise_base_m: 0.0, noise_quad_per_m: 0.0, dropout: 0.0, ..CameraConfig::single() }
 }
 
 fn estimate(cfg: CameraConfig, targets: &[Target]) -> Vec<PoseEstimate> {
@@ -64,7 +64,7 @@ fn a_rod_a_panel_and_a_ball_are_recovered() {
     let rod_axis = unit([0.3, 1.0, 0.8]);
     let normal = unit([-1.0, 0.4, 0.3]); // facing the camera, 27° off its axis
     let (pr, pp, pb) = ([4.0, 0.6, -0.3], [5.0, -1.2, 0.5], [3.0, 0.0, -1.0]);
-    for cfg in [exact(), CameraConfig::default()] {
+    for cfg in [exact(), CameraConfig::single()] {
         let t = [
             Target { id: 1, shape: rod.as_ref(), p: pr, q: z_onto(rod_axis), bound: 0.63 },
             Target { id: 2, shape: panel.as_ref(), p: pp, q: z_onto(normal), bound: 0.51 },
@@ -109,7 +109,7 @@ fn small_instances_are_left_out_and_extraction_allocates_nothing() {
     let e = estimate(exact(), &t);
     assert_eq!(e.len(), 1);
     assert_eq!(e[0].instance, 2);
-    let mut cam = Camera::new(CameraConfig::default()).unwrap();
+    let mut cam = Camera::new(CameraConfig::single()).unwrap();
     let mut frame = DepthFrame::default();
     cam.render(&t, &[], &mut frame);
     let mut ex = Extractor::default();

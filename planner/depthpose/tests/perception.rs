@@ -18,7 +18,7 @@ fn exact() -> CameraConfig {
         noise_base_m: 0.0,
         noise_quad_per_m: 0.0,
         dropout: 0.0,
-        ..CameraConfig::default()
+        ..CameraConfig::single()
     }
 }
 
@@ -498,3 +498,4 @@ fn a_cut_discs_partial_report_carries_its_visible_normal() {
     let err = angle_sign_free(&rot_z(&next[0].q), &rot_z(&cut));
     assert!(err < 0.05, "the visible normal: {err} rad off");
 }
+

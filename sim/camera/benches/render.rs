@@ -10,7 +10,7 @@ fn bench(c: &mut Criterion) {
     let objects = objects_ahead(32, 5);
     let targets = targets(&objects);
     let arm = arm_ahead();
-    let mut cam = Camera::new(CameraConfig::default()).unwrap();
+    let mut cam = Camera::new(CameraConfig::single()).unwrap();
     let mut frame = DepthFrame::default();
     let mut g = c.benchmark_group("camera");
     g.bench_function("render_128x96_32obj_arm", |b| {

@@ -21,7 +21,7 @@ fn main() -> Result<(), String> {
     let poser = ArmPoser::new(ArmModel::default_arm());
     let mut arm = [PosedCapsule::default(); NJ];
     poser.pose(&[0.3, -0.6, 1.1, 0.0, 0.6, 0.0], &mut arm);
-    let cfg = CameraConfig { position_m: [-5.0, 0.0, 1.0], ..CameraConfig::default() };
+    let cfg = CameraConfig { position_m: [-5.0, 0.0, 1.0], ..CameraConfig::single() };
     let mut cam = Camera::new(cfg).map_err(|e| e.to_string())?;
     let targets: Vec<Target> = world
         .debris()

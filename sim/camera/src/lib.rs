@@ -77,9 +77,24 @@ pub struct CameraConfig {
 }
 
 impl Default for CameraConfig {
-    /// Off; 20 frames/s delivered 30 ms after capture; 128 × 96, 60° vertical field of view, at the frame's origin looking along +x with
-    /// +z up in the image, 0.2–15 m, σ = 2 mm + 1.5 mm/m², 1 % dropped.
+    /// The servicer's camera rig, off: six 90° cameras ([`CameraConfig::rig`]) 0.8 m below
+    /// the arm's base (on the servicer, where the arm hides little and every direction is
+    /// seen), each [`CameraConfig::single`]'s image, range, noise, rate and latency.
     fn default() -> Self {
+        CameraConfig {
+            faces: 6,
+            fov_y_rad: std::f64::consts::FRAC_PI_2,
+            position_m: [0.0, 0.0, -0.8],
+            ..CameraConfig::single()
+        }
+    }
+}
+
+impl CameraConfig {
+    /// One camera, off: 20 frames/s delivered 30 ms after capture; 128 × 96, 60° vertical
+    /// field of view, at the frame's origin looking along +x with +z up in the image,
+    /// 0.2–15 m, σ = 2 mm + 1.5 mm/m², 1 % dropped.
+    pub fn single() -> Self {
         CameraConfig {
             enabled: false,
             rate_hz: 20.0,
@@ -165,6 +180,15 @@ impl CameraConfig {
         }
         if !(self.fov_y_rad > 0.0 && self.fov_y_rad < 3.0) {
             return fail("fov_y_rad", self.fov_y_rad, "must be in (0, 3) rad");
+        }
+        // A cube rig's faces meet only if each sees at least 90° both ways.
+        let half_x = (self.width as f64 / self.height as f64) * (0.5 * self.fov_y_rad).tan();
+        if self.faces == 6 && (self.fov_y_rad < std::f64::consts::FRAC_PI_2 - 1e-9 || half_x < 1.0 - 1e-9) {
+            return fail(
+                "fov_y_rad",
+                self.fov_y_rad,
+                "a cube rig (faces = 6) needs at least 90° vertically and horizontally, or its faces leave gaps",
+            );
         }
         for (i, &x) in self.position_m.iter().enumerate() {
             if !x.is_finite() {

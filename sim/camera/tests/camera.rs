@@ -18,7 +18,7 @@ const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
 
 /// The default camera without noise or dropped pixels.
 fn exact() -> CameraConfig {
-    CameraConfig { noise_base_m: 0.0, noise_quad_per_m: 0.0, dropout: 0.0, ..CameraConfig::default() }
+    CameraConfig { noise_base_m: 0.0, noise_quad_per_m: 0.0, dropout: 0.0, ..CameraConfig::single() }
 }
 
 fn target<'a>(id: u32, shape: &'a SharedShape, p: [f64; 3], bound: f64) -> Target<'a> {
@@ -168,12 +168,8 @@ fn range_noise_and_dropped_pixels_follow_the_configuration() {
     cam.render(&[target(1, &wall, [0.1, 0.0, 0.0], 30.0)], &[], &mut frame);
     assert_eq!(frame.count(BACKGROUND), 128 * 96);
     // At 2 m: σ = 1 cm + 2.5 mm/m² · 4 m² = 2 cm, 10 % dropped.
-    let cfg = CameraConfig {
-        noise_base_m: 0.01,
-        noise_quad_per_m: 0.0025,
-        dropout: 0.1,
-        ..CameraConfig::default()
-    };
+    let cfg =
+        CameraConfig { noise_base_m: 0.01, noise_quad_per_m: 0.0025, dropout: 0.1, ..CameraConfig::single() };
     let mut cam = Camera::new(cfg).unwrap();
     cam.render(&[target(1, &wall, [2.01, 0.0, 0.0], 30.0)], &[], &mut frame);
     assert_eq!(frame.count(1), 128 * 96, "the wall fills the image; dropped pixels keep their instance");
@@ -218,7 +214,7 @@ fn the_camera_sees_along_its_orientation_from_its_position() {
 #[test]
 fn a_bad_configuration_is_refused_naming_the_field() {
     let bad = |c: CameraConfig| Camera::new(c).unwrap_err().to_string();
-    let d = CameraConfig::default();
+    let d = CameraConfig::single();
     assert!(bad(CameraConfig { width: 0, ..d }).starts_with("camera.width"));
     assert!(bad(CameraConfig { height: 97, ..d }).starts_with("camera.height"));
     assert!(bad(CameraConfig { fov_y_rad: f64::NAN, ..d }).starts_with("camera.fov_y_rad"));
@@ -240,7 +236,7 @@ fn rendering_allocates_nothing() {
     let objects = objects_ahead(32, 3);
     let targets = targets(&objects);
     let arm = arm_ahead();
-    let mut cam = Camera::new(CameraConfig::default()).unwrap();
+    let mut cam = Camera::new(CameraConfig::single()).unwrap();
     let mut frame = DepthFrame::default();
     cam.render(&targets, &arm, &mut frame);
     let (_, s) = count(|| {
@@ -292,4 +288,14 @@ fn a_cube_rig_looks_along_every_axis() {
         .unwrap_err()
         .to_string()
         .starts_with("camera.faces"));
+    // A rig whose faces leave gaps between them is refused: 60° vertically, or 90°
+    // vertically on an image narrower than it is tall.
+    let gap = |c: CameraConfig| c.validate().unwrap_err().to_string();
+    assert!(gap(CameraConfig { fov_y_rad: 60f64.to_radians(), ..base }).contains("gaps"));
+    assert!(gap(CameraConfig { width: 64, ..base }).contains("gaps"));
+    // The default is such a rig, and valid.
+    let d = CameraConfig::default();
+    assert_eq!((d.faces, d.fov_y_rad), (6, std::f64::consts::FRAC_PI_2));
+    d.validate().unwrap();
+    assert_eq!(d.rig().len(), 6);
 }
