@@ -4,7 +4,9 @@
 //!
 //! Per instance, the [`Extractor`]'s centroid and principal axes, then per object id:
 //! * **Class**, from the largest spread seen per principal axis so far (a tumbling object
-//!   shows its sides in turn; one view can hide an extent): a **rod** when the first spread
+//!   shows its sides in turn; one view can hide an extent), in its whole views once it has
+//!   one (a view cut by the frame or hidden in part shows a part, and a part can spread
+//!   wider than the whole: a panel's two ends with the arm across its middle): a **rod** when the first spread
 //!   is over 3 times the second, a **panel** when the third is under a fifth of the second
 //!   (a **disc** when its second is at least [`ROUND`] of its first: a square panel, whose
 //!   in-plane axes the spreads do not tell), else **bulky** (balls, fragments).
@@ -155,6 +157,8 @@ struct Known {
     /// A view showed it larger than the reports so far: the next whole report is flagged
     /// [`DEBRIS_RESTART`].
     restart: bool,
+    /// A view of it neither cut by the frame nor hidden in part has been seen.
+    whole_seen: bool,
     /// Whole views whose points lie in a plane, and those of them whose two in-plane spreads
     /// are alike (within [`ROUND`]).
     round: [u32; 2],
@@ -349,13 +353,24 @@ impl DepthPerception {
                 self.stats.repeats += 1;
                 continue;
             }
-            // Larger than every view reported so far would have let through: those showed it
-            // in part (module docs).
-            if kn.last_t_ns != u64::MAX && e.spread[0] * PART > kn.spread[0] {
-                kn.restart = true;
-            }
-            for i in 0..3 {
-                kn.spread[i] = kn.spread[i].max(e.spread[i]);
+            // A view cut by the frame or hidden in part shows a part, and a part can spread
+            // wider than the whole (a panel's two ends with the arm across its middle): the
+            // spreads its views are measured against are the whole views' once it has one.
+            let hidden = e.cut > 0 || e.occluded > 0;
+            if !hidden {
+                // Larger than every view reported so far would have let through: those showed
+                // it in part (module docs).
+                if kn.last_t_ns != u64::MAX && e.spread[0] * PART > kn.spread[0] {
+                    kn.restart = true;
+                }
+                let first = !kn.whole_seen;
+                kn.spread =
+                    std::array::from_fn(|i| if first { e.spread[i] } else { kn.spread[i].max(e.spread[i]) });
+                kn.whole_seen = true;
+            } else if !kn.whole_seen {
+                for i in 0..3 {
+                    kn.spread[i] = kn.spread[i].max(e.spread[i]);
+                }
             }
             kn.last_frame = frame;
             if e.cut == 0 && e.spread[0] < PART * kn.spread[0] {
@@ -508,6 +523,7 @@ impl DepthPerception {
             shape: None,
             pending: None,
             restart: false,
+            whole_seen: false,
             round: [0; 2],
             plane_sum: [0.0; 2],
         };

@@ -499,3 +499,31 @@ fn a_cut_discs_partial_report_carries_its_visible_normal() {
     assert!(err < 0.05, "the visible normal: {err} rad off");
 }
 
+/// A panel with something nearer across its middle shows its two ends, which spread wider
+/// than the whole panel: such a view does not grow the spreads its later views are measured
+/// against, so the whole panel seen again is reported whole, with its true extent (before,
+/// it was taken for a part of a larger object and dropped for as long as the front end ran).
+#[test]
+fn a_view_of_a_panels_two_ends_does_not_make_its_whole_view_a_part() {
+    use dkrrt_msg::DEBRIS_PARTIAL;
+    // A 1.6 × 0.8 m panel facing the camera 3 m ahead; a nearer box hiding its middle 1.2 m.
+    let panel = (7, cuboid([0.01, 0.8, 0.4]), [3.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], 0.9);
+    let across = (8, cuboid([0.05, 0.4, 0.6]), [2.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], 0.73);
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
+        let n = per.convert(&render(objs, &exact(), t), &mut out);
+        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
+    };
+    let whole = items(&mut per, &[panel.clone()], 1.0);
+    assert_eq!(whole.len(), 1);
+    assert_eq!(ShapeKind::from_u32(whole[0].shape.kind), Some(ShapeKind::Box));
+    // The two ends: their long spread is well over the whole panel's (over 1/PART of it).
+    let _ = items(&mut per, &[panel.clone(), across], 1.1);
+    let again = items(&mut per, &[panel.clone()], 1.2);
+    assert_eq!(again.len(), 1, "the whole panel is reported");
+    assert_eq!(again[0].flags & DEBRIS_PARTIAL, 0);
+    let long = again[0].shape.dims[0].max(again[0].shape.dims[1]);
+    assert!((long - 0.8).abs() < 0.06, "long half extent {long} m (true 0.8)");
+    assert!(items(&mut per, &[panel], 1.3).len() == 1);
+}
