@@ -43,6 +43,17 @@ fn render(objects: &[dkrrt_camera::scene::Object], cfg: &CameraConfig, t_s: f64)
     img
 }
 
+/// `per`'s reports of object 7 from the exact camera's frame of `objs` at `t` s.
+fn reports_of_7(
+    per: &mut DepthPerception,
+    out: &mut DebrisObservation,
+    objs: &[dkrrt_camera::scene::Object],
+    t: f64,
+) -> Vec<dkrrt_msg::DebrisObs> {
+    let n = per.convert(&render(objs, &exact(), t), out);
+    out.items[..n].iter().filter(|it| it.id == 7).copied().collect()
+}
+
 #[test]
 fn objects_are_recovered_from_a_rendered_frame() {
     let (mut rods, mut rods_ok, mut panels, mut panels_ok, mut balls, mut balls_ok) = (0, 0, 0, 0, 0, 0);
@@ -196,10 +207,7 @@ fn a_view_cut_by_the_frame_is_reported_late_and_flagged_partial() {
     let rod = |y: f64| (7, SharedShape::capsule_z(0.9, 0.03), [4.0, y, 0.0], [h, -h, 0.0, 0.0], 0.93);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let items = |per: &mut DepthPerception, out: &mut DebrisObservation, objs: &[_], t: f64| {
-        let n = per.convert(&render(objs, &exact(), t), out);
-        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
-    };
+    let items = reports_of_7;
     let whole = items(&mut per, &mut out, &[rod(0.0)], 1.0);
     assert_eq!(whole.len(), 1);
     assert_eq!(whole[0].flags & DEBRIS_PARTIAL, 0);
@@ -388,10 +396,7 @@ fn a_view_hidden_in_part_behind_a_nearer_object_is_a_partial_one() {
     let panel = (8, SharedShape::cuboid(0.05, 0.6, 0.6), [3.0, 1.11, 0.0], [1.0, 0.0, 0.0, 0.0], 0.85);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
-        let n = per.convert(&render(objs, &exact(), t), &mut out);
-        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
-    };
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| reports_of_7(per, &mut out, objs, t);
     assert_eq!(items(&mut per, &[rod.clone()], 1.0).len(), 1);
     assert!(items(&mut per, &[rod.clone(), panel.clone()], 1.1).is_empty(), "held back");
     let next = items(&mut per, &[rod.clone()], 1.2);
@@ -413,10 +418,7 @@ fn a_cut_rods_partial_report_carries_its_visible_axis() {
     let rod = |y: f64, q: [f64; 4]| (7, SharedShape::capsule_z(0.9, 0.03), [4.0, y, 0.0], q, 0.93);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
-        let n = per.convert(&render(objs, &exact(), t), &mut out);
-        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
-    };
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| reports_of_7(per, &mut out, objs, t);
     let r = [c, s, 0.0, 0.0];
     let tilted = dkrrt_collision::pose::quat_mul(&r, &along_y);
     assert_eq!(items(&mut per, &[rod(0.0, along_y)], 1.0).len(), 1);
@@ -480,10 +482,7 @@ fn a_cut_discs_partial_report_carries_its_visible_normal() {
     let square = |y: f64, q: [f64; 4]| (7, cuboid([0.5, 0.5, 0.005]), [4.0, y, 0.0], q, 0.71);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
-        let n = per.convert(&render(objs, &exact(), t), &mut out);
-        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
-    };
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| reports_of_7(per, &mut out, objs, t);
     // Seen whole, facing the camera at 0.5 rad, then turned to 0.9 rad and cut by the side.
     for k in 0..4 {
         let it = items(&mut per, &[square(0.0, tilt(0.5))], 0.1 * (k + 1) as f64);
@@ -511,10 +510,7 @@ fn a_view_of_a_panels_two_ends_does_not_make_its_whole_view_a_part() {
     let across = (8, cuboid([0.05, 0.4, 0.6]), [2.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], 0.73);
     let mut per = DepthPerception::default();
     let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
-    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| {
-        let n = per.convert(&render(objs, &exact(), t), &mut out);
-        out.items[..n].iter().filter(|it| it.id == 7).copied().collect::<Vec<_>>()
-    };
+    let mut items = |per: &mut DepthPerception, objs: &[_], t: f64| reports_of_7(per, &mut out, objs, t);
     let whole = items(&mut per, &[panel.clone()], 1.0);
     assert_eq!(whole.len(), 1);
     assert_eq!(ShapeKind::from_u32(whole[0].shape.kind), Some(ShapeKind::Box));
