@@ -363,11 +363,12 @@ impl DepthPerception {
                 if kn.last_t_ns != u64::MAX && e.spread[0] * PART > kn.spread[0] {
                     kn.restart = true;
                 }
-                let first = !kn.whole_seen;
-                kn.spread =
-                    std::array::from_fn(|i| if first { e.spread[i] } else { kn.spread[i].max(e.spread[i]) });
-                kn.whole_seen = true;
-            } else if !kn.whole_seen {
+                if !kn.whole_seen {
+                    // The first whole view replaces what the parts before it spread.
+                    (kn.spread, kn.whole_seen) = ([0.0; 3], true);
+                }
+            }
+            if !hidden || !kn.whole_seen {
                 for i in 0..3 {
                     kn.spread[i] = kn.spread[i].max(e.spread[i]);
                 }
