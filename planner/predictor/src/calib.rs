@@ -7,9 +7,12 @@
 //!
 //! This replaces a bound fitted once on training data (a quantile over every kind of object)
 //! by one measured on the object itself: a slowly turning panel gets a tight bound, a fast
-//! tumbler a wide one. Steps that have not been scored yet (a young track, or one whose
-//! motion just changed: the predictor clears the scores at a detected event or manoeuvre, as
-//! its fitted bound grows) have no bound: the caller keeps the fitted one. Storage is allocated once ([`ForecastScore::new`]).
+//! tumbler a wide one. Steps that have not been scored yet have no bound: the caller keeps
+//! the fitted one. That is so for a young track, and for one whose filter started again (a
+//! manoeuvre re-opened its velocity, or a whole view restarted its position): the predictor
+//! clears the scores there as the fitted bound grows, and keeps forecasts for scoring only
+//! from `PredictorConfig::calib_min_obs` poses on, since a converging filter's forecasts tell
+//! nothing of the settled ones. Storage is allocated once ([`ForecastScore::new`]).
 
 /// Forecasts kept per track (one per model step of start time: 4.8 s at 0.1 s, more than the
 /// horizon).

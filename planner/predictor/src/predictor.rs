@@ -91,7 +91,8 @@ pub struct PredictorConfig {
     pub calib_floor: [f64; 2],
     /// Online calibration: factor on the scores.
     pub calib_factor: f64,
-    /// Online calibration: observations a track needs before its forecasts are kept for
+    /// Online calibration: observations a track needs since its filter (re)started (its first
+    /// pose, a manoeuvre re-opening, a position restart) before its forecasts are kept for
     /// scoring (earlier ones come from a filter still converging).
     pub calib_min_obs: u32,
     /// Online calibration: steps it covers (from 1). Beyond, the fitted bound, but never
@@ -238,6 +239,10 @@ struct Track {
     axis: AxisChannel,
     euler: EulerChannel,
     score: ForecastScore,
+    /// Accepted observations since the filter last started (the track's first, a position
+    /// restart or a manoeuvre re-opening): the forecasts it makes are kept for scoring from
+    /// [`PredictorConfig::calib_min_obs`] on.
+    calib_obs: u32,
 }
 
 /// Read-only view of one track.
@@ -445,6 +450,7 @@ impl DebrisPredictor {
             axis: AxisChannel::new(),
             euler: EulerChannel::new(),
             score: ForecastScore::new(models.horizon, models.dt),
+            calib_obs: 0,
         };
         DebrisPredictor {
             engine: {
@@ -592,6 +598,7 @@ impl DebrisPredictor {
             tr.symmetry = Symmetry::NONE;
         }
         tr.score.clear();
+        tr.calib_obs = 1;
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
         push_hist(tr);
     }
@@ -700,6 +707,7 @@ impl DebrisPredictor {
             tr.filter.restart_position(&cfg.filter, (1.0f64).max(tr.size).powi(2));
             tr.hist_len = 0;
             tr.score.clear();
+            tr.calib_obs = 0;
             tr.pos_bound.clone_from(&self.models.pos_bound);
             self.stats.restarts += 1;
         }
@@ -724,6 +732,14 @@ impl DebrisPredictor {
             // velocity error over the averaging window of the test.
             let y = (0..3).map(|i| (o.p[i] - xprior[i]).powi(2)).sum::<f64>().sqrt() - extra;
             tr.pos_bound.grow(y, y / (cfg.filter.maneuver_window * dt_obs.max(1e-3)));
+            // The forecasts made before came from the old velocity, and those of the next
+            // poses come from one still converging: like a young track's, neither tells what
+            // the settled forecasts will miss by, so the calibration starts again
+            // ([`PredictorConfig::calib_min_obs`] poses on), the grown fitted bound standing
+            // in meanwhile. (Kept, the errors of the converging velocity's forecasts, metres
+            // at 4 s, held every bound of the track wide for the scores' 20 s memory.)
+            tr.score.clear();
+            tr.calib_obs = 0;
             self.stats.maneuvers += 1;
         }
         if att_measured && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
@@ -744,6 +760,7 @@ impl DebrisPredictor {
             });
         }
         tr.n_obs += 1;
+        tr.calib_obs += 1;
         tr.last_obs_p = o.p;
         if att_measured {
             tr.last_obs_q = q;
@@ -873,7 +890,7 @@ impl DebrisPredictor {
                 continue;
             }
             mature += 1;
-            let kept = tr.n_obs >= self.cfg.calib_min_obs && tr.score.wants(tr.filter.t);
+            let kept = tr.calib_obs >= self.cfg.calib_min_obs && tr.score.wants(tr.filter.t);
             if kept || !calibration_only {
                 sel[n] = i as u16;
                 n += 1;
@@ -936,7 +953,7 @@ impl DebrisPredictor {
             if self.cfg.front_end_margin_m > 0.0 {
                 buf.pos_radius[k * hb..k * hb + h].iter_mut().for_each(|r| *r += self.cfg.front_end_margin_m);
             }
-            if tr.n_obs >= self.cfg.calib_min_obs {
+            if tr.calib_obs >= self.cfg.calib_min_obs {
                 tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
             }
             let rows = k * hb..k * hb + h;
