@@ -218,7 +218,10 @@ fn after_an_impulse_the_calibration_starts_again_and_still_covers_the_truth() {
         }
     }
     assert!(pr.stats().maneuvers >= 1, "the impulse re-opened the velocity");
-    assert!(checked > 1000 && missed * 100 <= checked, "{missed} of {checked} calibrated bounds missed the truth");
+    assert!(
+        checked > 1000 && missed * 100 <= checked,
+        "{missed} of {checked} calibrated bounds missed the truth"
+    );
     // The errors of the velocity still converging after the re-opening (and of the forecasts
     // made before it) are not held for the scores' memory: 7 s later the bound is back near
     // the settled one.
