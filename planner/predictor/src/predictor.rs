@@ -597,7 +597,7 @@ impl DebrisPredictor {
             tr.size = 0.0;
             tr.symmetry = Symmetry::NONE;
         }
-        tr.score.clear();
+        tr.restart_calibration();
         tr.calib_obs = 1;
         tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
         push_hist(tr);
@@ -706,8 +706,7 @@ impl DebrisPredictor {
             // event growth built on them go (the attitude, the shape and the models stay).
             tr.filter.restart_position(&cfg.filter, (1.0f64).max(tr.size).powi(2));
             tr.hist_len = 0;
-            tr.score.clear();
-            tr.calib_obs = 0;
+            tr.restart_calibration();
             tr.pos_bound.clone_from(&self.models.pos_bound);
             self.stats.restarts += 1;
         }
@@ -738,8 +737,7 @@ impl DebrisPredictor {
             // ([`PredictorConfig::calib_min_obs`] poses on), the grown fitted bound standing
             // in meanwhile. (Kept, the errors of the converging velocity's forecasts, metres
             // at 4 s, held every bound of the track wide for the scores' 20 s memory.)
-            tr.score.clear();
-            tr.calib_obs = 0;
+            tr.restart_calibration();
             self.stats.maneuvers += 1;
         }
         if att_measured && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
@@ -1008,6 +1006,15 @@ impl DebrisPredictor {
         buf.len = n;
         self.stats.forecast_fallbacks = self.engine.fallbacks;
         n
+    }
+}
+
+impl Track {
+    /// Forget the calibration's forecasts and scores; keep the next forecasts for scoring from
+    /// [`PredictorConfig::calib_min_obs`] poses on (the filter (re)starts with this pose).
+    fn restart_calibration(&mut self) {
+        self.score.clear();
+        self.calib_obs = 0;
     }
 }
 

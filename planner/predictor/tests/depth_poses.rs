@@ -2,8 +2,8 @@
 //! taken for an impulse nor lets the track jump, a big object's poses count as noisier, a
 //! young track's bound covers its unknown velocity, a track dropped while its object
 //! was out of view is taken up again with its velocity, and after an impulse the online
-//! calibration starts again (for any sensor). Each setting is off for the pose sensor (the
-//! defaults), and each test shows what happens without it.
+//! calibration starts again (for any sensor, not a setting). Each setting is off for the pose
+//! sensor (the defaults), and each setting's test shows what happens without it.
 
 mod common;
 
