@@ -65,6 +65,7 @@ pub fn run(
     let mut pose_goals_unreachable = 0u64;
     let bus = Bus::new(run, "planner").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut state_lock = dkrrt_msg::bus::PublisherLock::default();
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
     let mut fc_sub = bus.subscriber::<DebrisForecast>().map_err(|e| e.to_string())?;
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
@@ -90,7 +91,7 @@ pub fn run(
             stopped_by_signal = true;
             break;
         }
-        if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
+        if state_lock.latest(&bus, &mut state_sub, &mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
         cmd_sub.latest(&mut cmd, &lim).map_err(|e| e.to_string())?;

@@ -74,6 +74,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         false => None,
     };
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut state_lock = dkrrt_msg::bus::PublisherLock::default();
     let mut fc_pub = bus.publisher::<DebrisForecast>(Source::Predictor).map_err(|e| e.to_string())?;
     let mut prog_pub = bus.publisher::<PredictorProgress>(Source::Predictor).map_err(|e| e.to_string())?;
     let mut prog = <PredictorProgress as Zeroed>::zeroed();
@@ -102,7 +103,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
         }
         // The end of the run first: the sim publishes its last frames before the state with
         // END_OF_RUN, so the drain below still gets them (and counts a gap before them).
-        if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
+        if state_lock.latest(&bus, &mut state_sub, &mut state, &lim).map_err(|e| e.to_string())? {
             end = state.header.flags & FLAG_END_OF_RUN != 0;
         }
         // The core checks each frame and then each item (and counts what it drops).

@@ -50,6 +50,7 @@ pub fn run(
     let mut goal_known = first_goal.is_some();
     let bus = Bus::new(run, "goto").map_err(|e| e.to_string())?;
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
+    let mut state_lock = dkrrt_msg::bus::PublisherLock::default();
     let mut goal_sub = bus.subscriber::<Goal>().map_err(|e| e.to_string())?;
     let mut cmd_sub = bus.subscriber::<TorqueCommand>().map_err(|e| e.to_string())?;
     let mut cmd = <TorqueCommand as Zeroed>::zeroed();
@@ -75,7 +76,7 @@ pub fn run(
         plan_errors: Vec::new(),
     };
     while !signals::stop_requested() {
-        if state_sub.latest(&mut state, &lim).map_err(|e| e.to_string())? {
+        if state_lock.latest(&bus, &mut state_sub, &mut state, &lim).map_err(|e| e.to_string())? {
             have_state = true;
         }
         match take_goal(&mut goal_sub, &lim)? {

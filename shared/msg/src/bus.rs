@@ -390,6 +390,43 @@ pub struct Sub<T: Topic> {
     pub foreign: u64,
 }
 
+/// Reads a single-publisher service (the robot state) from the publisher first heard, the
+/// one the run started: valid samples of any other (a rogue `sim` on the run) are dropped and
+/// counted in [`Sub::foreign`]. If the followed publisher leaves the service, the next one
+/// heard takes over (a restarted driver). What the tracker does for its states, for the
+/// other readers of them: a planner that planned from a rogue's states spliced trajectories
+/// where the arm was not.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PublisherLock {
+    id: Option<u128>,
+    foreign_seen: u64,
+}
+
+impl PublisherLock {
+    /// [`Sub::latest`] from the followed publisher; true if it had a new sample.
+    pub fn latest<T: Topic>(
+        &mut self,
+        bus: &Bus,
+        sub: &mut Sub<T>,
+        out: &mut T,
+        lim: &ContractLimits,
+    ) -> Result<bool, BusError> {
+        let lock = self.id;
+        let got = sub.latest_from(out, lim, |o| lock.is_none_or(|l| l == o))?;
+        if got {
+            self.id.get_or_insert(sub.origin);
+        }
+        if sub.foreign > self.foreign_seen {
+            self.foreign_seen = sub.foreign;
+            // Gone only if the service says so (an error listing it is no reason to switch).
+            if self.id.is_some_and(|l| bus.publisher_ids::<T>().is_ok_and(|ids| !ids.contains(&l))) {
+                self.id = None;
+            }
+        }
+        Ok(got)
+    }
+}
+
 impl<T: Topic> Sub<T> {
     /// Drains the queue; copies the newest *valid* sample into `out` and
     /// returns true if there was one. Invalid samples are counted and dropped.

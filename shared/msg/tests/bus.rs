@@ -182,3 +182,44 @@ fn a_late_reader_keeps_16_observation_frames_and_counts_the_lost_ones() {
     assert!(ss.latest(&mut got, &lim()).unwrap());
     assert_eq!((got.header.seq, ss.received, ss.lost), (10, 5, 6));
 }
+
+#[test]
+fn a_publisher_lock_follows_the_runs_own_state_publisher_and_the_next_when_it_leaves() {
+    use dkrrt_msg::bus::PublisherLock;
+    let run = run_id("lock");
+    let _clean = Leftovers(run.clone());
+    let reader = Bus::new(&run, "planner").unwrap();
+    let mut locked = reader.subscriber::<RobotState>().unwrap();
+    let mut plain = reader.subscriber::<RobotState>().unwrap();
+    let mut lock = PublisherLock::default();
+    let (ours_bus, rogue_bus) = (Bus::new(&run, "sim").unwrap(), Bus::new(&run, "rogue").unwrap());
+    let mut ours = ours_bus.publisher::<RobotState>(Source::Sim).unwrap();
+    let mut rogue = rogue_bus.publisher::<RobotState>(Source::Sim).unwrap();
+    ours.update_connections().unwrap();
+    rogue.update_connections().unwrap();
+    let mut got = <RobotState as Zeroed>::zeroed();
+    // The first publisher heard is followed.
+    ours.publish(&mut state(0.1)).unwrap();
+    assert!(lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap());
+    assert_eq!(got.q[0], 0.1);
+    // A rogue's newer states are dropped and counted; a plain reader would take them.
+    ours.publish(&mut state(0.2)).unwrap();
+    rogue.publish(&mut state(0.8)).unwrap();
+    assert!(lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap());
+    assert_eq!((got.q[0], locked.foreign), (0.2, 1));
+    let mut other = <RobotState as Zeroed>::zeroed();
+    assert!(plain.latest(&mut other, &lim()).unwrap());
+    assert_eq!(other.q[0], 0.8, "without the lock the newest sample, the rogue's, is read");
+    rogue.publish(&mut state(0.9)).unwrap();
+    assert!(!lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap());
+    assert_eq!(got.q[0], 0.2);
+    // Ours leaves the service (a restarted driver): the next publisher heard takes over.
+    drop(ours);
+    drop(ours_bus);
+    rogue.update_connections().unwrap();
+    rogue.publish(&mut state(0.7)).unwrap();
+    let _ = lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap();
+    rogue.publish(&mut state(0.6)).unwrap();
+    assert!(lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap());
+    assert_eq!(got.q[0], 0.6);
+}
