@@ -157,8 +157,8 @@ pub fn run(
     // The plant this run started: the first publisher of states. A second one (a rogue `sim`
     // on the run) is ignored and counted; if ours is gone from the service, the next one
     // takes over (a restarted driver).
-    let mut state_lock: Option<u128> = None;
-    let mut foreign_states_seen = 0u64;
+    let mut state_lock = dkrrt_msg::bus::PublisherLock::default();
+    let mut foreign_warned = false;
     let mut last_q = [f64::NAN; NJ];
     let mut end_of_run_seen = false;
     let mut stopped_by_signal = false;
@@ -181,9 +181,7 @@ pub fn run(
                 wake.record_ns(w.latency_ns());
                 let until = w.deadline_ns + wait_ns;
                 loop {
-                    if state_sub
-                        .latest_from(&mut state, &lim, |o| state_lock.is_none_or(|l| l == o))
-                        .map_err(|e| e.to_string())?
+                    if state_lock.latest(&bus, &mut state_sub, &mut state, &lim).map_err(|e| e.to_string())?
                         && last_seq.is_none_or(|s| state.header.seq > s)
                     {
                         fresh = true;
@@ -197,9 +195,7 @@ pub fn run(
             Mode::Lockstep => {
                 let mut spins = 0u32;
                 loop {
-                    if state_sub
-                        .latest_from(&mut state, &lim, |o| state_lock.is_none_or(|l| l == o))
-                        .map_err(|e| e.to_string())?
+                    if state_lock.latest(&bus, &mut state_sub, &mut state, &lim).map_err(|e| e.to_string())?
                         && last_seq.is_none_or(|s| state.header.seq > s)
                     {
                         fresh = true;
@@ -228,19 +224,10 @@ pub fn run(
         }
         if fresh {
             last_fresh_ns = now;
-            state_lock.get_or_insert(state_sub.origin);
         }
-        if state_sub.foreign > foreign_states_seen {
-            if foreign_states_seen == 0 {
-                eprintln!("tracker: ignoring robot states from a publisher this run did not start");
-            }
-            foreign_states_seen = state_sub.foreign;
-            // Gone only if the service says so (an error listing it is no reason to switch).
-            let gone = state_lock
-                .is_some_and(|l| bus.publisher_ids::<RobotState>().is_ok_and(|ids| !ids.contains(&l)));
-            if gone {
-                state_lock = None;
-            }
+        if state_sub.foreign > 0 && !foreign_warned {
+            foreign_warned = true;
+            eprintln!("tracker: ignoring robot states from a publisher this run did not start");
         }
         // A stop: our own signal, or the plant's (FLAG_STOPPING in its state).
         let plant_stops = fresh && state.header.flags & FLAG_STOPPING != 0;

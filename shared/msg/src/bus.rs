@@ -393,9 +393,9 @@ pub struct Sub<T: Topic> {
 /// Reads a single-publisher service (the robot state) from the publisher first heard, the
 /// one the run started: valid samples of any other (a rogue `sim` on the run) are dropped and
 /// counted in [`Sub::foreign`]. If the followed publisher leaves the service, the next one
-/// heard takes over (a restarted driver). What the tracker does for its states, for the
-/// other readers of them: a planner that planned from a rogue's states spliced trajectories
-/// where the arm was not.
+/// heard takes over (a restarted driver). The tracker and every other reader of the robot
+/// state use it: a planner that planned from a rogue's states spliced trajectories where
+/// the arm was not.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PublisherLock {
     id: Option<u128>,
