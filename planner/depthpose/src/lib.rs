@@ -81,12 +81,11 @@ struct Sums {
 
 /// The fewest valid pixels an instance needs to be estimated ([`Extractor::min_points`]'s
 /// default). Three give a centroid. A small object far away, or one mostly hidden behind the
-/// arm, shows only a few pixels; with six needed, a 0.16 m object crossing at 2 m/s was first
-/// seen too late to be avoided, and a 0.2 m one mostly hidden behind the arm 0.5 s before it
-/// hit (`dkrrt study`
-/// through the camera, 100 episodes per scene: a collision in sparse-slow and one in
-/// fast-crossing). Its spreads mean little at that size; the front end's class and shape
-/// come from the largest spreads the object shows as it nears.
+/// arm, shows only a few pixels. With six needed, a 0.16 m object crossing at 2 m/s was seen
+/// too late to be avoided, and a 0.2 m one mostly hidden behind the arm only 0.5 s before it
+/// hit (`dkrrt study` through the camera, 100 episodes per scene: a collision in sparse-slow
+/// and one in fast-crossing). Its spreads mean little at that size; the front end's class
+/// and shape come from the largest spreads the object shows as it nears.
 pub const MIN_POINTS: usize = 3;
 
 /// Per-instance sums, preallocated.
