@@ -27,6 +27,7 @@ pub use replan::{
     Replanner, Summary, TrackerView,
 };
 pub use rrt::{
-    Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_DT, DODGE_GAIN_M, DODGE_TIME_GAIN_S,
+    Plan, PlanStats, Planner, PlannerConfig, Reach, Request, DODGE_AREA_FRACTION, DODGE_DT, DODGE_GAIN_M,
+    DODGE_TIME_GAIN_S,
 };
 pub use world::{After, Gaps, TimedPose, WorldError, WorldInTime};

@@ -149,6 +149,20 @@ pub const DODGE_GAIN_M: f64 = 0.01;
 /// When every candidate goes deeper than `dodge_depth_m` within the look-ahead (a bound that
 /// engulfs the arm's reach), a dodge must put that off by this much over staying, s.
 pub const DODGE_TIME_GAIN_S: f64 = 0.5;
+/// When none puts it off so, a dodge must cut the depth integrated over the look-ahead to at
+/// most this fraction of staying's.
+pub const DODGE_AREA_FRACTION: f64 = 0.75;
+
+/// A dodge candidate over the look-ahead: its smallest predicted clearance (m; negative: a
+/// depth into the inflated obstacles), the first sample time deeper than `dodge_depth_m`
+/// (infinite: never), the depth integrated over time (m·s) and its arrival time (s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct DodgeScore {
+    min: f64,
+    deep: f64,
+    area: f64,
+    arrival: f64,
+}
 
 /// What checking an edge found.
 enum Edge {
@@ -586,7 +600,11 @@ impl Planner {
     /// every candidate, staying included, goes that deep before the look-ahead's end (a bound
     /// grown over the whole reach, as after a fragment splits off), the one that goes that deep
     /// latest is taken if it puts that off by [`DODGE_TIME_GAIN_S`] over staying: the object is
-    /// most likely where its bound grows from. A best effort, not a clean plan: its clearance
+    /// most likely where its bound grows from. When none does (the arm is already that deep, in
+    /// a bound that creeps over it), the one with the least depth integrated over the look-ahead
+    /// is taken if that is at most [`DODGE_AREA_FRACTION`] of staying's and its deepest point is
+    /// no deeper than staying's: the arm backs out of the bound rather than wait in it for the
+    /// object. A best effort, not a clean plan: its clearance
     /// may be negative, and the next cycle checks it like any other plan. Candidates are tried
     /// while `keep_going()` (the cycle's deadline).
     pub fn dodge(
@@ -600,9 +618,11 @@ impl Planner {
         self.reset(req);
         // Staying: the rest at the start, or the brake to rest.
         let stay_q = if self.root_moving { self.brake_point(&req.start)? } else { req.start.p };
-        let (stay, stay_deep, _) = self.dodge_score(world, &stay_q)?;
-        // (q, clearance, first time deeper than the dodge depth, arrival)
-        let mut best: Option<([f64; NJ], f64, f64, f64)> = None;
+        let stay = self.dodge_score(world, &stay_q)?;
+        // The most clearance; among candidates that all go too deep, the latest to; and the
+        // least integrated depth.
+        let mut best: Option<([f64; NJ], DodgeScore)> = None;
+        let mut least: Option<([f64; NJ], DodgeScore)> = None;
         let step = self.cfg.step_rad;
         for k in 0..(2 * NJ + DODGE_RANDOM + 1) {
             if !keep_going() {
@@ -618,20 +638,28 @@ impl Planner {
                 req.goal
             };
             let q: [f64; NJ] = std::array::from_fn(|j| q[j].clamp(self.q_min[j], self.q_max[j]));
-            if let Some((score, deep, arrival)) = self.dodge_score(world, &q) {
-                // The most clearance; among candidates that all go too deep, the latest to.
-                if best.is_none_or(|b| deep > b.2 || (deep == b.2 && score > b.1)) {
-                    best = Some((q, score, deep, arrival));
+            if let Some(s) = self.dodge_score(world, &q) {
+                if best.is_none_or(|(_, b)| s.deep > b.deep || (s.deep == b.deep && s.min > b.min)) {
+                    best = Some((q, s));
+                }
+                if s.min >= stay.min && least.is_none_or(|(_, b)| s.area < b.area) {
+                    least = Some((q, s));
                 }
             }
         }
-        let (q, score, deep, arrival) = best?;
-        let takes = if deep.is_finite() {
-            deep >= stay_deep + DODGE_TIME_GAIN_S
-        } else {
-            score >= stay + DODGE_GAIN_M
+        let takes = |s: &DodgeScore| {
+            if s.deep.is_finite() {
+                s.deep >= stay.deep + DODGE_TIME_GAIN_S
+            } else {
+                s.min >= stay.min + DODGE_GAIN_M
+            }
         };
-        if !takes || self.nodes.len() >= self.nodes.capacity() {
+        let (q, DodgeScore { min: score, arrival, .. }) = match (best, least) {
+            (Some(b), _) if takes(&b.1) => b,
+            (_, Some(l)) if stay.deep.is_finite() && l.1.area <= DODGE_AREA_FRACTION * stay.area => l,
+            _ => return None,
+        };
+        if self.nodes.len() >= self.nodes.capacity() {
             return None;
         }
         self.nodes.push(Node { q, t: arrival, parent: ROOT, wait: 0.0, min_clear: score });
@@ -639,29 +667,30 @@ impl Planner {
         Some(Plan { reach: Reach::Escape, arrival, min_clearance: score, n_waypoints: 1 })
     }
 
-    /// The smallest predicted clearance of "move from the root to rest at `q`, then stay",
-    /// sampled every [`DODGE_DT`] to the look-ahead's end, the first sample time at which it
-    /// is deeper than `dodge_depth_m` (infinite: never), and the arrival time.
-    fn dodge_score(&mut self, world: &WorldInTime, q: &[f64; NJ]) -> Option<(f64, f64, f64)> {
+    /// How "move from the root to rest at `q`, then stay" fares over the look-ahead, sampled
+    /// every [`DODGE_DT`]; `None` when no such motion is found.
+    fn dodge_score(&mut self, world: &WorldInTime, q: &[f64; NJ]) -> Option<DodgeScore> {
         let tr = self.motion(&self.root, q);
         if tr.is_none() && (self.root_moving || *q != self.root.p) {
             return None;
         }
         let (t0, t_end, d) = (self.t0, self.t_end(), tr.as_ref().map_or(0.0, |t| t.duration()));
-        let (mut m, mut deep) = (f64::INFINITY, f64::INFINITY);
+        let mut s = DodgeScore { min: f64::INFINITY, deep: f64::INFINITY, area: 0.0, arrival: t0 + d };
         let mut t = t0;
         while t <= t_end + 1e-9 {
             let at = match &tr {
                 Some(tr) if t - t0 < d => tr.at(t - t0).p,
                 _ => *q,
             };
-            m = m.min(self.checker.clearance_at(world, &at, t, 0.0, f64::NEG_INFINITY));
-            if m < -self.cfg.dodge_depth_m && deep.is_infinite() {
-                deep = t;
+            let c = self.checker.clearance_at(world, &at, t, 0.0, f64::NEG_INFINITY);
+            s.min = s.min.min(c);
+            s.area += (-c).max(0.0) * DODGE_DT;
+            if s.min < -self.cfg.dodge_depth_m && s.deep.is_infinite() {
+                s.deep = t;
             }
             t += DODGE_DT;
         }
-        Some((m, deep, t0 + d))
+        Some(s)
     }
 
     /// The intermediate waypoints of the last written plan (rest configurations after the start,

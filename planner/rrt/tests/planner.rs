@@ -289,6 +289,43 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     assert!(p.dodge(&req, &calm, 10, || true, &mut out).is_none());
 }
 
+/// A wide bound (an object whose attitude is unknown is bounded by its whole sweep) already
+/// 0.3 m into the resting arm, creeping over it at 5 cm/s: staying and every motion are deeper
+/// than the dodge depth from the start, so no motion puts that off. The dodge then backs the
+/// arm out: over the look-ahead its depth, integrated, is at most `DODGE_AREA_FRACTION` of
+/// staying's, it is never deeper than staying gets, and it ends farther from the object.
+#[test]
+fn inside_a_creeping_bound_the_dodge_backs_out() {
+    let (r, sigma, speed, t0) = (0.1, 0.6, 0.05, 2.0);
+    let (p0, v) = coming_at_link(r, sigma, 0.3, speed, t0);
+    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let depth = p.cfg.dodge_depth_m;
+    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
+    assert_eq!(plan.reach, Reach::Escape);
+    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    assert!(each[0].2 < -depth, "set-up: the arm starts deeper than the dodge depth ({:.3})", each[0].2);
+    let area = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(|x| (-f(x)).max(0.0) * 1e-3).sum::<f64>();
+    let (moved, stay) = (area(|x| x.1), area(|x| x.2));
+    assert!(moved <= DODGE_AREA_FRACTION * stay + 1e-3, "integrated depth {moved:.3} vs staying {stay:.3}");
+    let deepest = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(f).fold(f64::INFINITY, f64::min);
+    assert!(deepest(|x| x.1) >= deepest(|x| x.2) - 0.01, "{} vs {}", deepest(|x| x.1), deepest(|x| x.2));
+    // The object itself (no bound): the dodge leaves the arm farther from it at the end.
+    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
+    bare.set_margin(0.0);
+    let t_end = each.last().unwrap().0;
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let end = out.sample(t_end - t0).p;
+    let (c_moved, c_stay) = (
+        ch.clearance_at(&bare, &end, t_end, 0.0, f64::NEG_INFINITY),
+        ch.clearance_at(&bare, &START, t_end, 0.0, f64::NEG_INFINITY),
+    );
+    assert!(c_moved > c_stay + 0.05, "object clearance at the end: dodge {c_moved:.3}, staying {c_stay:.3}");
+}
+
 #[test]
 fn plans_are_deterministic_for_a_seed() {
     let (mid, t_mid) = straight_mid_point();
