@@ -155,12 +155,14 @@ pub const DODGE_AREA_FRACTION: f64 = 0.75;
 
 /// A dodge candidate over the look-ahead: its smallest predicted clearance (m; negative: a
 /// depth into the inflated obstacles), the first sample time deeper than `dodge_depth_m`
-/// (infinite: never), the depth integrated over time (m·s) and its arrival time (s).
+/// (infinite: never), the depth integrated over time (m·s), the clearance at the look-ahead's
+/// end (m) and its arrival time (s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct DodgeScore {
     min: f64,
     deep: f64,
     area: f64,
+    last: f64,
     arrival: f64,
 }
 
@@ -600,11 +602,17 @@ impl Planner {
     /// every candidate, staying included, goes that deep before the look-ahead's end (a bound
     /// grown over the whole reach, as after a fragment splits off), the one that goes that deep
     /// latest is taken if it puts that off by [`DODGE_TIME_GAIN_S`] over staying: the object is
-    /// most likely where its bound grows from. When none does (the arm is already that deep, in
-    /// a bound that creeps over it), the one with the least depth integrated over the look-ahead
-    /// is taken if that is at most [`DODGE_AREA_FRACTION`] of staying's and its deepest point is
-    /// no deeper than staying's: the arm backs out of the bound rather than wait in it for the
-    /// object. A best effort, not a clean plan: its clearance
+    /// most likely where its bound grows from.
+    ///
+    /// When none does, the arm is already that deep, and staying is deepest at the look-ahead's
+    /// end (a bound still advancing over the arm; one that passes or recedes leaves by itself),
+    /// the arm backs out rather than wait in the bound for the object: of the candidates that end
+    /// no deeper than `dodge_depth_m` and are never deeper than staying gets, the one with the
+    /// least depth integrated over the look-ahead, if that is at most [`DODGE_AREA_FRACTION`] of
+    /// staying's. A bound metres deep that no candidate leaves says nothing of where in it the
+    /// object is: no dodge.
+    ///
+    /// A best effort, not a clean plan: its clearance
     /// may be negative, and the next cycle checks it like any other plan. Candidates are tried
     /// while `keep_going()` (the cycle's deadline).
     pub fn dodge(
@@ -642,7 +650,8 @@ impl Planner {
                 if best.is_none_or(|(_, b)| s.deep > b.deep || (s.deep == b.deep && s.min > b.min)) {
                     best = Some((q, s));
                 }
-                if s.min >= stay.min && least.is_none_or(|(_, b)| s.area < b.area) {
+                let out_by_end = s.last >= -self.cfg.dodge_depth_m;
+                if s.min >= stay.min && out_by_end && least.is_none_or(|(_, b)| s.area < b.area) {
                     least = Some((q, s));
                 }
             }
@@ -656,7 +665,13 @@ impl Planner {
         };
         let (q, DodgeScore { min: score, arrival, .. }) = match (best, least) {
             (Some(b), _) if takes(&b.1) => b,
-            (_, Some(l)) if stay.deep.is_finite() && l.1.area <= DODGE_AREA_FRACTION * stay.area => l,
+            (_, Some(l))
+                if stay.last < -self.cfg.dodge_depth_m
+                    && stay.last <= stay.min + DODGE_GAIN_M
+                    && l.1.area <= DODGE_AREA_FRACTION * stay.area =>
+            {
+                l
+            }
             _ => return None,
         };
         if self.nodes.len() >= self.nodes.capacity() {
@@ -675,7 +690,8 @@ impl Planner {
             return None;
         }
         let (t0, t_end, d) = (self.t0, self.t_end(), tr.as_ref().map_or(0.0, |t| t.duration()));
-        let mut s = DodgeScore { min: f64::INFINITY, deep: f64::INFINITY, area: 0.0, arrival: t0 + d };
+        let mut s =
+            DodgeScore { min: f64::INFINITY, deep: f64::INFINITY, area: 0.0, last: 0.0, arrival: t0 + d };
         let mut t = t0;
         while t <= t_end + 1e-9 {
             let at = match &tr {
@@ -685,6 +701,7 @@ impl Planner {
             let c = self.checker.clearance_at(world, &at, t, 0.0, f64::NEG_INFINITY);
             s.min = s.min.min(c);
             s.area += (-c).max(0.0) * DODGE_DT;
+            s.last = c;
             if s.min < -self.cfg.dodge_depth_m && s.deep.is_infinite() {
                 s.deep = t;
             }

@@ -293,7 +293,8 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
 /// 0.3 m into the resting arm, creeping over it at 5 cm/s: staying and every motion are deeper
 /// than the dodge depth from the start, so no motion puts that off. The dodge then backs the
 /// arm out: over the look-ahead its depth, integrated, is at most `DODGE_AREA_FRACTION` of
-/// staying's, it is never deeper than staying gets, and it ends farther from the object.
+/// staying's, it is never deeper than staying gets, it ends out of the bound's deep part, and
+/// farther from the object.
 #[test]
 fn inside_a_creeping_bound_the_dodge_backs_out() {
     let (r, sigma, speed, t0) = (0.1, 0.6, 0.05, 2.0);
@@ -311,6 +312,14 @@ fn inside_a_creeping_bound_the_dodge_backs_out() {
     let area = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(|x| (-f(x)).max(0.0) * 1e-3).sum::<f64>();
     let (moved, stay) = (area(|x| x.1), area(|x| x.2));
     assert!(moved <= DODGE_AREA_FRACTION * stay + 1e-3, "integrated depth {moved:.3} vs staying {stay:.3}");
+    // It ends out of the bound's deep part, where staying is still in it.
+    let last = each.last().unwrap();
+    assert!(
+        last.1 >= -depth - 0.01 && last.2 < -depth,
+        "at the end: dodge {:.3}, staying {:.3}",
+        last.1,
+        last.2
+    );
     let deepest = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(f).fold(f64::INFINITY, f64::min);
     assert!(deepest(|x| x.1) >= deepest(|x| x.2) - 0.01, "{} vs {}", deepest(|x| x.1), deepest(|x| x.2));
     // The object itself (no bound): the dodge leaves the arm farther from it at the end.
@@ -324,6 +333,30 @@ fn inside_a_creeping_bound_the_dodge_backs_out() {
         ch.clearance_at(&bare, &START, t_end, 0.0, f64::NEG_INFINITY),
     );
     assert!(c_moved > c_stay + 0.05, "object clearance at the end: dodge {c_moved:.3}, staying {c_stay:.3}");
+}
+
+/// The same wide bound 0.6 m into the resting arm, but receding at 5 cm/s: staying gets
+/// shallower by itself, so there is nothing to back out of, and no dodge is made (the rule of
+/// [`inside_a_creeping_bound_the_dodge_backs_out`] is for a bound still advancing over the arm
+/// at the look-ahead's end).
+#[test]
+fn inside_a_receding_bound_there_is_no_dodge() {
+    let (r, sigma, speed, t0) = (0.1, 0.6, -0.05, 2.0);
+    let (p0, v) = coming_at_link(r, sigma, 0.6, speed, t0);
+    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
+    let mut p = planner();
+    let mut out = <Trajectory as Zeroed>::zeroed();
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let t_end = t0 + p.cfg.lookahead_s;
+    let first = ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY);
+    let last = ch.clearance_at(&w, &START, t_end, 0.0, f64::NEG_INFINITY);
+    let depth = p.cfg.dodge_depth_m;
+    assert!(
+        first < last - 0.1 && last < -depth,
+        "set-up: deep all along, shallower at the end ({first:.3} → {last:.3})"
+    );
+    assert!(p.dodge(&req, &w, 9, || true, &mut out).is_none());
 }
 
 #[test]
