@@ -200,6 +200,22 @@ fn coming_at_link(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> ([f64
     ([k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]], v)
 }
 
+/// A sphere of radius `r` whose bound `sigma` is `inside` metres into link 4 of the arm
+/// resting at `START` at `t0`, closing at `speed` (negative: receding); the planner, an empty
+/// message and the request from there.
+fn sphere_at_resting_arm(
+    r: f64,
+    sigma: f64,
+    inside: f64,
+    speed: f64,
+    t0: f64,
+) -> (WorldInTime, [f64; 3], [f64; 3], Planner, Trajectory, Request) {
+    let (p0, v) = coming_at_link(r, sigma, inside, speed, t0);
+    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
+    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    (w, p0, v, planner(), <Trajectory as Zeroed>::zeroed(), req)
+}
+
 /// Every millisecond of the look-ahead from `t0`: (t, the clearance of the dodge `out`, the
 /// clearance of staying at `START`).
 fn dodge_and_stay_each_ms(w: &WorldInTime, out: &Trajectory, t0: f64) -> Vec<(f64, f64, f64)> {
@@ -267,11 +283,7 @@ fn a_start_inside_the_inflation_is_left_within_the_relief() {
 fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     let (r, sigma, speed, t0) = (0.1, 0.1, 0.15, 2.0);
     // At t0 the inflated sphere is 2 cm inside the link; it passes right through it.
-    let (p0, v) = coming_at_link(r, sigma, 0.02, speed, t0);
-    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
-    let mut p = planner();
-    let mut out = <Trajectory as Zeroed>::zeroed();
-    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let (w, _, _, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.02, speed, t0);
     assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
     let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
     assert_eq!(plan.reach, Reach::Escape);
@@ -298,11 +310,7 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
 #[test]
 fn inside_a_creeping_bound_the_dodge_backs_out() {
     let (r, sigma, speed, t0) = (0.1, 0.6, 0.05, 2.0);
-    let (p0, v) = coming_at_link(r, sigma, 0.3, speed, t0);
-    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
-    let mut p = planner();
-    let mut out = <Trajectory as Zeroed>::zeroed();
-    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let (w, p0, v, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.3, speed, t0);
     assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
     let depth = p.cfg.dodge_depth_m;
     let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
@@ -341,12 +349,8 @@ fn inside_a_creeping_bound_the_dodge_backs_out() {
 /// at the look-ahead's end).
 #[test]
 fn inside_a_receding_bound_there_is_no_dodge() {
-    let (r, sigma, speed, t0) = (0.1, 0.6, -0.05, 2.0);
-    let (p0, v) = coming_at_link(r, sigma, 0.6, speed, t0);
-    let w = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, sigma);
-    let mut p = planner();
-    let mut out = <Trajectory as Zeroed>::zeroed();
-    let req = Request { start: KinState::rest(START), t0, goal: GOAL };
+    let (w, _, _, mut p, mut out, req) = sphere_at_resting_arm(0.1, 0.6, 0.6, -0.05, 2.0);
+    let t0 = req.t0;
     let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
     let t_end = t0 + p.cfg.lookahead_s;
     let first = ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY);
