@@ -491,6 +491,7 @@ fn the_process_set_solves_and_reaches_a_scenario_pose_goal() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("planner: pose goal"), "the planner solved the pose goal: {stderr}");
     let r = read_report(&rp);
+    let _ = std::fs::remove_file(&rp);
     assert_eq!(r["ok"], true);
     assert_eq!(r["debris"]["collision"], false);
     assert!(r["planner"]["goal_reached_s"].is_number(), "{:#}", r["planner"]);
@@ -746,6 +747,7 @@ fn launch_lockstep(text: &str, tag: &str) -> (Value, String) {
     let _ = std::fs::remove_file(&sc_path);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r = read_report(&rp);
+    let _ = std::fs::remove_file(&rp);
     assert_eq!(r["ok"], true, "{:#}", r["checks"]);
     (r, String::from_utf8_lossy(&out.stdout).into_owned())
 }

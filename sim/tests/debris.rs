@@ -54,7 +54,8 @@ fn a_debris_object_on_a_link_is_a_collision_and_a_distant_one_is_not() {
     // Same sphere 3 m along the radial axis beyond the whole arm: no contact, and the
     // reported closest distance is below the centre distance and positive.
     let far = [mid[0] + 10.0, mid[1], mid[2]];
-    sc.debris.scene = sphere_scene("miss", far, 0.2).display().to_string();
+    let miss = sphere_scene("miss", far, 0.2);
+    sc.debris.scene = miss.display().to_string();
     let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     assert!(!side.check(&q0(&sc).into()));
     let d = side.stats.min_distance_m.unwrap();
@@ -65,6 +66,7 @@ fn a_debris_object_on_a_link_is_a_collision_and_a_distant_one_is_not() {
     let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     assert!(side.check(&q0(&sc).into()));
     let _ = std::fs::remove_dir_all(path.parent().unwrap());
+    let _ = std::fs::remove_dir_all(miss.parent().unwrap());
 }
 
 #[test]

@@ -3,16 +3,34 @@
 
 use dkrrt_config::{Scenario, DEFAULT_SCENARIO};
 
+/// A file in a directory of its own, removed with it when dropped.
+struct Written(std::path::PathBuf);
+
+impl std::ops::Deref for Written {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for Written {
+    fn drop(&mut self) {
+        if let Some(dir) = self.0.parent() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
+}
+
 /// Writes `text` as `name` in a directory of its own (the tests run in parallel threads: a
 /// shared path let one test read another's half-written file).
-fn write(name: &str, text: &str) -> std::path::PathBuf {
+fn write(name: &str, text: &str) -> Written {
     static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = std::env::temp_dir().join(format!("dkrrt-cfg-{}-{k}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
-    p
+    Written(p)
 }
 
 /// The error of loading the default scenario with `from` replaced by `to` (load + validate).
