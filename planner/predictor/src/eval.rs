@@ -368,10 +368,13 @@ pub struct Errors {
 }
 
 /// The published bound of forecast `j`, `k` steps ahead, and the true shape's excess over the
-/// predicted shape as the planner reads it: `(bound, excess)`, m. The predicted pose and bound
-/// are built as the predictor process publishes them (a rod: its axis by precession), with
-/// the shape published (`shape`, `radius`: an estimate, or the true one); the truth is the
-/// true shape (`true_shape`, `true_radius`) at the true pose.
+/// predicted shape as the planner reads it: `(bound, excess)`, m. The planner takes the object
+/// to lie both in the predicted shape inflated by the surface bound and in the bounding sphere
+/// inflated by the position bound; of the two, the one the truth exceeds its bound by more
+/// (or is the less inside) is returned, so `excess ≤ bound` holds exactly when the truth lies in
+/// both. The predicted pose and bound are built as the predictor process publishes them (a
+/// rod: its axis by precession), with the shape published (`shape`, `radius`: an estimate, or
+/// the true one); the truth is the true shape (`true_shape`, `true_radius`) at the true pose.
 #[allow(clippy::too_many_arguments)]
 pub fn surface_sample(
     buf: &ForecastBuffer,
@@ -383,19 +386,21 @@ pub fn surface_sample(
     true_radius: f64,
     truth: &[f64; N],
 ) -> (f64, f64) {
-    use dkrrt_collision::bounds::{shape_excess, sphere_is_tighter, surface_sigma};
+    use dkrrt_collision::bounds::{shape_excess, surface_sigma};
     let x = buf.state(j, k);
     let q = buf.published_attitude(j, k, shape);
     let p = [x[0], x[1], x[2]];
     let pos = buf.pos_radius(j, k);
     let sigma = surface_sigma(shape, radius, pos, buf.attitude_radius(j, k), buf.axis_radius(j, k));
     let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
-    if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
-        // The bounding sphere of the published radius, inflated by the position bound.
-        let ball = DebrisShape::default();
-        (pos, shape_excess(&ball, radius, &p, &q, true_shape, true_radius, &pt, &qt))
+    // The bounding sphere of the published radius, inflated by the position bound.
+    let ball = DebrisShape::default();
+    let in_ball = (pos, shape_excess(&ball, radius, &p, &q, true_shape, true_radius, &pt, &qt));
+    let in_shape = (sigma, shape_excess(shape, radius, &p, &q, true_shape, true_radius, &pt, &qt));
+    if in_ball.1 - in_ball.0 > in_shape.1 - in_shape.0 {
+        in_ball
     } else {
-        (sigma, shape_excess(shape, radius, &p, &q, true_shape, true_radius, &pt, &qt))
+        in_shape
     }
 }
 

@@ -322,15 +322,16 @@ impl WorldInTime {
                     continue;
                 }
             }
-            // The shape inflated by its surface bound, or the bounding sphere by the position
-            // bound when the attitude is too uncertain for the shape to be the tighter one (the
-            // attitude is interpolated only when the shape needs it).
-            let o = if s.sphere || dkrrt_collision::bounds::sphere_is_tighter(s.sigma, s.sigma_pos, tr.lever)
-            {
+            // The object lies in the shape inflated by its surface bound and in the bounding
+            // sphere inflated by the position bound: the arm's distance to it is at least the
+            // larger of its distances to the two (the attitude is interpolated only when the
+            // shape needs it). A track without a shape is its sphere alone.
+            let o = if s.sphere {
                 Obstacle::from_desc(tr.id, &DebrisShape::default(), tr.radius, &s.p, &ID, s.sigma_pos + base)
             } else {
                 let q = if tr.lever > 0.0 || tr.shape.offset != [0.0; 3] { s.q() } else { ID };
                 Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &s.p, &q, s.sigma + base)
+                    .with_ball(&s.p, tr.radius + s.sigma_pos + base)
             };
             if out.len() < out.capacity() {
                 out.push(o);

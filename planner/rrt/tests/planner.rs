@@ -794,3 +794,38 @@ fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
     assert!(moved.is_finite() && stay.is_finite(), "set-up: both go too deep ({moved}, {stay})");
     assert!(moved >= stay + DODGE_TIME_GAIN_S - DODGE_DT, "dodge deep at {moved:.3}, staying at {stay:.3}");
 }
+
+/// A rod whose attitude is barely known (its surface bound 0.85 m, its position bound 0.25 m)
+/// lies end-on 1.2 m from link 4. The rod inflated by its surface bound reaches 0.35 m into the
+/// link; its bounding sphere inflated by the position bound stays 0.25 m off. The object lies
+/// in both, so the checker counts the larger distance: the arm is clear, by the sphere's gap.
+#[test]
+fn a_track_is_as_far_as_the_farther_of_its_shape_and_its_sphere() {
+    let (h, r, sigma_pos, sigma, t0) = (0.6, 0.05, 0.25, 0.85, 2.0);
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    poser.pose(&START, &mut caps);
+    let k = caps[4];
+    let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
+    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
+    let u = [axis[1] / n, -axis[0] / n, 0.0]; // square to the link, horizontal
+    let d = k.r + 1.2;
+    let p = [k.centre[0] + d * u[0], k.centre[1] + d * u[1], k.centre[2]];
+    // Body z onto -u (end-on towards the link): a quarter turn about z × (-u).
+    let ax = [u[1], -u[0], 0.0];
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let q = [s, s * ax[0], s * ax[1], s * ax[2]];
+    let poses: Vec<TimedPose> =
+        (0..=60).map(|i| TimedPose { t: 0.1 * i as f64, p, q, sigma, sigma_pos }).collect();
+    let mut w = WorldInTime::new(0.05);
+    let rod = DebrisShape::capsule(h, r);
+    w.push_track(1, rod, &poses, After::Hold).unwrap();
+    let margin = 0.05;
+    let shape_alone = dkrrt_collision::Obstacle::from_desc(1, &rod, h + r, &p, &q, sigma + margin);
+    assert!(shape_alone.distance(&k) < -0.3, "set-up: the inflated rod reaches into link 4");
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    ch.cap = 10.0;
+    let c = ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY);
+    let ball_gap = 1.2 - (h + r + sigma_pos + margin);
+    assert!(c > 0.0 && c <= ball_gap + 1e-9, "clearance {c:.3}, the sphere's gap {ball_gap:.3}");
+}

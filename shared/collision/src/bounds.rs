@@ -7,10 +7,13 @@
 //!   for the shape ([`attitude_channel`]) and the lever is the farthest shape point from the
 //!   body origin ([`DebrisShape::rotation_lever`]): a rotation by θ moves a point at distance
 //!   ℓ by `2ℓ sin(θ/2) ≤ θℓ`.
-//! * The planner inflates the predicted shape by `sigma_m` (+ margin), or uses the bounding
-//!   sphere inflated by `sigma_pos_m` when that is no larger ([`sphere_is_tighter`]).
+//! * The planner takes the object to lie both in the predicted shape inflated by `sigma_m`
+//!   (+ margin) and in the bounding sphere inflated by `sigma_pos_m` (+ margin), and measures
+//!   the arm's distance to it as the larger of its distances to the two
+//!   ([`crate::Obstacle::with_ball`]).
 //! * [`surface_excess`] is the smallest inflation of the predicted shape that contains the
-//!   true one: the forecast is *contained* when it is ≤ the inflation used.
+//!   true one: the forecast is *contained* when it is ≤ the inflation used, for both
+//!   containers.
 
 use crate::pose::quat_rotate;
 use dkrrt_msg::{DebrisShape, ShapeKind};
@@ -58,12 +61,6 @@ pub fn surface_sigma(
         AttitudeChannel::Full => att_full,
     };
     pos + th.min(MAX_ATTITUDE_BOUND) * shape.rotation_lever(bounding_radius)
-}
-
-/// Whether the bounding sphere (radius + `sigma_pos`) is no larger than the shape inflated by
-/// `sigma` (its lever + `sigma` ≥ its radius + `sigma_pos`, with lever ≈ radius).
-pub fn sphere_is_tighter(sigma: f64, sigma_pos: f64, lever: f64) -> bool {
-    sigma - sigma_pos >= lever
 }
 
 /// The smallest `s` such that the true shape (pose `p_true`, `q_true`) lies inside the

@@ -171,6 +171,11 @@ pub struct Obstacle {
     /// Bounding sphere about `p` (not inflated).
     pub bound: f64,
     pub inflate: f64,
+    /// A second container the object also lies in: the ball of radius `ball_r` about `ball_p`
+    /// (infinite: none). The object then lies in both, and a capsule's distance to it is at
+    /// least the larger of its distances to the two ([`Obstacle::with_ball`]).
+    pub ball_p: [f64; 3],
+    pub ball_r: f64,
 }
 
 impl std::fmt::Debug for Obstacle {
@@ -181,6 +186,8 @@ impl std::fmt::Debug for Obstacle {
             .field("q", &self.q)
             .field("bound", &self.bound)
             .field("inflate", &self.inflate)
+            .field("ball_p", &self.ball_p)
+            .field("ball_r", &self.ball_r)
             .finish()
     }
 }
@@ -208,7 +215,16 @@ impl Obstacle {
             Some(ShapeKind::Disc) => (Geom::Disc { r: d[0], half: d[1] }, d[0].hypot(d[1])),
             _ => (Geom::Sphere { r: bounding_radius }, bounding_radius),
         };
-        Obstacle { id, geom, p: c, q: *q, bound, inflate }
+        Obstacle { id, geom, p: c, q: *q, bound, inflate, ball_p: c, ball_r: f64::INFINITY }
+    }
+
+    /// The same obstacle known also to lie within the ball of radius `r` about `centre` (a
+    /// forecast's bounding sphere inflated by its position bound, beside the shape inflated by
+    /// its surface bound): distances are then to the intersection's outside, the larger of
+    /// the two, never smaller than to either container alone.
+    pub fn with_ball(mut self, centre: &[f64; 3], r: f64) -> Self {
+        (self.ball_p, self.ball_r) = (*centre, r);
+        self
     }
 
     /// An exact parry3d shape at a pose (`bound`: its bounding radius about `p`). Balls,
@@ -228,7 +244,7 @@ impl Obstacle {
         } else {
             Geom::Shape(shape)
         };
-        Obstacle { id, geom, p: *p, q: *q, bound, inflate: 0.0 }
+        Obstacle { id, geom, p: *p, q: *q, bound, inflate: 0.0, ball_p: *p, ball_r: f64::INFINITY }
     }
 
     fn parry_pose(&self) -> Pose {
@@ -263,7 +279,18 @@ impl Obstacle {
             }
             Geom::Shape(s) => self.parry_distance(c, s.as_ref()),
         };
-        raw - self.inflate
+        (raw - self.inflate).max(self.ball_distance(c))
+    }
+
+    /// Distance from the capsule to the second container ([`Obstacle::with_ball`]; −∞ without
+    /// one).
+    #[inline]
+    fn ball_distance(&self, c: &PosedCapsule) -> f64 {
+        if self.ball_r.is_finite() {
+            seg_point(&c.a, &c.b, &self.ball_p) - c.r - self.ball_r
+        } else {
+            f64::NEG_INFINITY
+        }
     }
 
     fn parry_distance(&self, c: &PosedCapsule, shape: &dyn Shape) -> f64 {
@@ -278,7 +305,8 @@ impl Obstacle {
     /// A lower bound of [`Self::distance`] from the bounding spheres.
     #[inline]
     pub fn lower_bound(&self, c: &PosedCapsule) -> f64 {
-        dist(&c.centre, &self.p) - c.bound - self.bound - self.inflate
+        let shape = dist(&c.centre, &self.p) - c.bound - self.bound - self.inflate;
+        shape.max(dist(&c.centre, &self.ball_p) - c.bound - self.ball_r)
     }
 }
 

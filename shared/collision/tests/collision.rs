@@ -350,3 +350,53 @@ fn the_reach_sphere_holds_the_arm_at_any_configuration() {
     // Not uselessly loose either.
     assert!(farthest > 0.6 * r, "farthest {farthest} of {r}");
 }
+
+/// An obstacle also known to lie in a ball ([`Obstacle::with_ball`]): a capsule's distance is
+/// the larger of its distances to the inflated shape and to the ball, the lower bound stays
+/// below it, [`clearance`] and [`proximity`] agree with all pairs, and no point lying in both
+/// containers is nearer the capsule than that distance (so the distance to the object is never
+/// overstated).
+#[test]
+fn an_obstacle_in_two_containers_is_as_far_as_the_farther() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut contacts = [ContactPair::default(); 4];
+    for _ in 0..100 {
+        let plain = scene(&mut rng, 8);
+        let balls: Vec<([f64; 3], f64)> = plain
+            .iter()
+            .map(|o| {
+                let c: [f64; 3] = std::array::from_fn(|i| o.p[i] + rng.random_range(-0.2..0.2));
+                (c, rng.random_range(0.1..0.8))
+            })
+            .collect();
+        let both: Vec<Obstacle> =
+            plain.iter().zip(&balls).map(|(o, (c, r))| o.clone().with_ball(c, *r)).collect();
+        let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+        poser.pose(&q, &mut caps);
+        for (o, (b, (c_ball, r_ball))) in plain.iter().zip(both.iter().zip(&balls)) {
+            for c in &caps {
+                let to_ball = seg_point(&c.a, &c.b, c_ball) - c.r - r_ball;
+                let d = b.distance(c);
+                assert!((d - o.distance(c).max(to_ball)).abs() < 1e-12);
+                assert!(b.lower_bound(c) <= d + 1e-12);
+                // Points in the ball that also lie in the inflated shape: none nearer than d.
+                for _ in 0..20 {
+                    let u: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+                    let x: [f64; 3] = std::array::from_fn(|i| c_ball[i] + r_ball * u[i] / 3f64.sqrt());
+                    if o.distance(&PosedCapsule::new(x, x, 0.0)) <= 0.0 {
+                        assert!(seg_point(&c.a, &c.b, &x) - c.r >= d - 1e-9, "a point of both is nearer");
+                    }
+                }
+            }
+        }
+        let brute =
+            caps.iter().flat_map(|c| both.iter().map(move |o| o.distance(c))).fold(f64::INFINITY, f64::min);
+        let pr = proximity(&caps, &both, 0.0, &mut contacts);
+        assert!((pr.min_distance - brute).abs() < 1e-12);
+        if brute >= 0.0 {
+            assert!((clearance(&caps, &both, 0.0, f64::INFINITY) - brute).abs() < 1e-12);
+        }
+    }
+}
