@@ -302,11 +302,14 @@ impl Obstacle {
         }
     }
 
-    /// A lower bound of [`Self::distance`] from the bounding spheres.
+    /// A lower bound of [`Self::distance`] from the bounding spheres (and the second
+    /// container, [`Obstacle::with_ball`]).
     #[inline]
     pub fn lower_bound(&self, c: &PosedCapsule) -> f64 {
         let shape = dist(&c.centre, &self.p) - c.bound - self.bound - self.inflate;
-        shape.max(dist(&c.centre, &self.ball_p) - c.bound - self.ball_r)
+        // The second container's own distance is exact and cheap: where it decides, the
+        // shape's distance need not be measured.
+        shape.max(self.ball_distance(c))
     }
 }
 
