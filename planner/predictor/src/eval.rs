@@ -370,9 +370,10 @@ pub struct Errors {
 /// The published bound of forecast `j`, `k` steps ahead, and the true shape's excess over the
 /// predicted shape as the planner reads it: `(bound, excess)`, m. The planner takes the object
 /// to lie both in the predicted shape inflated by the surface bound and in the bounding sphere
-/// inflated by the position bound; of the two, the one the truth exceeds its bound by more
-/// (or is the less inside) is returned, so `excess ≤ bound` holds exactly when the truth lies in
-/// both. The predicted pose and bound are built as the predictor process publishes them (a
+/// inflated by the position bound. The smaller of the two is returned
+/// ([`dkrrt_collision::bounds::sphere_is_tighter`]), unless the truth leaves the other: then
+/// that one, so `excess ≤ bound` holds exactly when the truth lies in both. The predicted pose
+/// and bound are built as the predictor process publishes them (a
 /// rod: its axis by precession), with the shape published (`shape`, `radius`: an estimate, or
 /// the true one); the truth is the true shape (`true_shape`, `true_radius`) at the true pose.
 #[allow(clippy::too_many_arguments)]
@@ -386,7 +387,7 @@ pub fn surface_sample(
     true_radius: f64,
     truth: &[f64; N],
 ) -> (f64, f64) {
-    use dkrrt_collision::bounds::{shape_excess, surface_sigma};
+    use dkrrt_collision::bounds::{shape_excess, sphere_is_tighter, surface_sigma};
     let x = buf.state(j, k);
     let q = buf.published_attitude(j, k, shape);
     let p = [x[0], x[1], x[2]];
@@ -397,10 +398,15 @@ pub fn surface_sample(
     let ball = DebrisShape::default();
     let in_ball = (pos, shape_excess(&ball, radius, &p, &q, true_shape, true_radius, &pt, &qt));
     let in_shape = (sigma, shape_excess(shape, radius, &p, &q, true_shape, true_radius, &pt, &qt));
-    if in_ball.1 - in_ball.0 > in_shape.1 - in_shape.0 {
-        in_ball
+    let (tighter, other) = if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
+        (in_ball, in_shape)
     } else {
-        in_shape
+        (in_shape, in_ball)
+    };
+    if other.1 > other.0 && tighter.1 <= tighter.0 {
+        other
+    } else {
+        tighter
     }
 }
 

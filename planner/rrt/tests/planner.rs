@@ -184,17 +184,22 @@ fn an_unavoidable_obstacle_gives_no_plan() {
     assert_eq!(out.traj_id, 0, "nothing written");
 }
 
-/// A sphere of radius `r` (bound `sigma`, margin 0.05) coming at link 4 of the arm resting at
-/// START, square to the link at `speed`, its inflated surface `inside` deep in the link at
-/// `t0`: its position at t = 0 and its velocity.
-fn coming_at_link(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> ([f64; 3], [f64; 3]) {
+/// Link 4 of the arm resting at `START`, and the horizontal direction square to it.
+fn link4() -> (dkrrt_collision::PosedCapsule, [f64; 3]) {
     let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
     let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
     poser.pose(&START, &mut caps);
     let k = caps[4];
     let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
     let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
-    let u = [axis[1] / n, -axis[0] / n, 0.0]; // axis × z: square to the link
+    (k, [axis[1] / n, -axis[0] / n, 0.0]) // axis × z: square to the link
+}
+
+/// A sphere of radius `r` (bound `sigma`, margin 0.05) coming at link 4 of the arm resting at
+/// START, square to the link at `speed`, its inflated surface `inside` deep in the link at
+/// `t0`: its position at t = 0 and its velocity.
+fn coming_at_link(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> ([f64; 3], [f64; 3]) {
+    let (k, u) = link4();
     let d = k.r + r + sigma + 0.05 - inside;
     let v = [-speed * u[0], -speed * u[1], 0.0];
     ([k.centre[0] + d * u[0] - v[0] * t0, k.centre[1] + d * u[1] - v[1] * t0, k.centre[2]], v)
@@ -802,13 +807,7 @@ fn when_a_bound_engulfs_everything_the_dodge_puts_the_conflict_off() {
 #[test]
 fn a_track_is_as_far_as_the_farther_of_its_shape_and_its_sphere() {
     let (h, r, sigma_pos, sigma, t0) = (0.6, 0.05, 0.25, 0.85, 2.0);
-    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
-    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
-    poser.pose(&START, &mut caps);
-    let k = caps[4];
-    let axis = [k.b[0] - k.a[0], k.b[1] - k.a[1], k.b[2] - k.a[2]];
-    let n = (axis[0] * axis[0] + axis[1] * axis[1]).sqrt();
-    let u = [axis[1] / n, -axis[0] / n, 0.0]; // square to the link, horizontal
+    let (k, u) = link4();
     let d = k.r + 1.2;
     let p = [k.centre[0] + d * u[0], k.centre[1] + d * u[1], k.centre[2]];
     // Body z onto -u (end-on towards the link): a quarter turn about z × (-u).

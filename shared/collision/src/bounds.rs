@@ -63,6 +63,13 @@ pub fn surface_sigma(
     pos + th.min(MAX_ATTITUDE_BOUND) * shape.rotation_lever(bounding_radius)
 }
 
+/// Whether the bounding sphere (radius + `sigma_pos`) is the smaller of a track's two
+/// containers (its lever + `sigma` ≥ its radius + `sigma_pos`, with lever ≈ radius): the bound
+/// `dkrrt predict-eval` reports, the tighter one.
+pub fn sphere_is_tighter(sigma: f64, sigma_pos: f64, lever: f64) -> bool {
+    sigma - sigma_pos >= lever
+}
+
 /// The smallest `s` such that the true shape (pose `p_true`, `q_true`) lies inside the
 /// predicted one (`p_pred`, `q_pred`) inflated by `s`, m: for a sphere the centre distance,
 /// for a capsule the larger distance of the true axis's end points to the predicted axis
