@@ -228,6 +228,10 @@ pub struct Recording {
     /// Forecasts are then published, and scored, with each object's latest estimate against
     /// its true shape, as the planner receives them.
     pub obs_shapes: Vec<(DebrisShape, f64)>,
+    /// Scheduled events the simulator fired, `(time, id)`: an impulse's target, a split's
+    /// parent (its fragment is a new object). What no forecast of the object can foresee;
+    /// [`Models::fit_bounds`] sizes the bound's allowance for them from these.
+    pub events: Vec<(f64, u32)>,
 }
 
 /// The named scene with seeded perturbations of every object's initial state: position
@@ -280,10 +284,21 @@ pub fn record(
         obs: Vec::new(),
         shapes: Vec::new(),
         obs_shapes: Vec::new(),
+        events: Vec::new(),
     };
     for k in 0..=steps {
         if k > 0 {
+            let (t_prev, fired) = (world.time(), world.events_fired());
             world.step(sim_dt);
+            // The specs due in a step in which the world fired (a split it had to skip, at
+            // full capacity, does not fire).
+            if world.events_fired() > fired {
+                let due = scene
+                    .events
+                    .iter()
+                    .filter(|e| e.time() > t_prev - 1e-12 && e.time() <= world.time() + 1e-12);
+                rec.events.extend(due.map(|e| (e.time(), e.target())));
+            }
         }
         rec.truth.frames.push(world.debris().iter().map(|d| (d.id, state13(d))).collect());
         for d in world.debris() {
@@ -343,6 +358,10 @@ pub fn training_set(
             s.truth = (0..s.est.len() + horizon)
                 .map(|k| rec.truth.at(s.id, s.t0 + k as f64 * dt).unwrap_or([f64::NAN; N]))
                 .collect();
+            let end = s.t0 + s.truth.len() as f64 * dt;
+            s.events =
+                rec.events.iter().filter(|e| e.1 == s.id && e.0 > s.t0 && e.0 < end).map(|e| e.0).collect();
+            s.events.sort_by(f64::total_cmp);
             ts.segments.push(s);
         }
     }

@@ -22,6 +22,7 @@ pub mod axis;
 pub mod calib;
 pub mod euler;
 pub mod eval;
+pub mod events;
 pub mod filter;
 mod kernels;
 pub mod models;

@@ -6,6 +6,7 @@
 //! (`attitude_dictionary`, p = 26) or a Gaussian RBF dictionary; both rolled out in relift mode
 //! with the quaternion renormalised every step.
 
+use crate::events::{first_event_step, EventAllowance, Sample};
 use crate::filter::quat_angle;
 use crate::kernels::{self, ROWS};
 use dkrrt_deep::{DeepKoopman, DeepLifting};
@@ -283,6 +284,9 @@ pub struct Segment {
     pub est: Vec<[f64; N]>,
     /// True states at `t0 + k dt`, `k < est.len() + horizon` (NaN rows where unknown).
     pub truth: Vec<[f64; N]>,
+    /// Times of the events that acted on the object within `truth`'s span (impulses, splits:
+    /// [`crate::eval::Recording::events`]), ascending.
+    pub events: Vec<f64>,
 }
 
 impl TrainingSet {
@@ -321,6 +325,11 @@ pub struct FitConfig {
     pub bound_margin: f64,
     /// Error bound: start stride (grid points) of the validation forecasts.
     pub bound_stride: usize,
+    /// Error bound: the share of all forecasts that may miss through events no forecast can
+    /// foresee (impulses, splits), half of the 1 % a 99 % bound may miss. Where events fall
+    /// into more of the training forecasts than this, the bound covers them
+    /// ([`crate::events`]).
+    pub event_budget: f64,
     /// Seed (RBF centres, collocation points).
     pub seed: u64,
     /// Attitude roll-out of the deep methods: [`Rollout::Linear`] (lifted-linear, what the
@@ -345,6 +354,7 @@ impl Default for FitConfig {
             bound_quantile: 0.99,
             bound_margin: 1.5,
             bound_stride: 5,
+            event_budget: 0.005,
             seed: 1,
             deep_rollout: Rollout::Linear,
         }
@@ -378,6 +388,9 @@ pub struct Models {
     pub pos_bound: ErrorBound,
     /// Attitude error bound [rad] per step.
     pub att_bound: ErrorBound,
+    /// Per-step allowance for events (impulses, splits) that no forecast foresees
+    /// ([`crate::events`]): the least a calibrated bound may be.
+    pub events: EventAllowance,
     /// Dual-data correction ridge per training pair actually used, translation and attitude
     /// (`∞` = nominal generator alone; NaN where the method has no dual-data model).
     pub dual_ridge: [f64; 2],
@@ -406,6 +419,7 @@ impl Models {
             att_rollout: Rollout::Relift,
             pos_bound: ErrorBound::constant(horizon, dt, pos_radius),
             att_bound: ErrorBound::constant(horizon, dt, att_radius),
+            events: EventAllowance::none(horizon),
             dual_ridge: [f64::NAN; 2],
         }
     }
@@ -518,11 +532,12 @@ impl Models {
         let h = self.horizon;
         let mut eng = Engine::new(self);
         let mut out = vec![0.0; h * N];
-        let (mut ep, mut ea) = (Vec::new(), Vec::new());
+        let (mut ep, mut ea, mut first) = (Vec::new(), Vec::new(), Vec::new());
         for seg in &data.segments {
             let mut s = 0;
             while s < seg.est.len() {
                 if seg.truth.len() > s + h && seg.truth[s + 1..=s + h].iter().all(|r| r[0].is_finite()) {
+                    first.push(first_event_step(&seg.events, seg.t0 + s as f64 * data.dt, data.dt, h));
                     eng.run(self, &self.trans, &self.att, &seg.est[s], h, &mut out);
                     for k in 0..h {
                         let (xh, xt) = (&out[k * N..(k + 1) * N], &seg.truth[s + k + 1]);
@@ -542,6 +557,13 @@ impl Models {
                 ErrorBound::from_residuals(&ep, h, self.dt, cfg.bound_quantile, cfg.bound_margin);
             self.att_bound =
                 ErrorBound::from_residuals(&ea, h, self.dt, cfg.bound_quantile, cfg.bound_margin);
+            let samples = first.iter().zip(ep.chunks_exact(h).zip(ea.chunks_exact(h)));
+            self.events = EventAllowance::fit(
+                samples.map(|(&first_event, (pos, att))| Sample { first_event, pos, att }),
+                h,
+                cfg.event_budget,
+                cfg.bound_margin,
+            );
         }
     }
 }

@@ -932,6 +932,9 @@ impl DebrisPredictor {
                 let o = k * hb + s - 1;
                 if s <= self.cfg.calib_steps {
                     if let Some((rp, ra)) = tr.score.radius(s, floor, factor) {
+                        // Never below the allowance for events the object's past cannot show.
+                        let ev = &self.models.events;
+                        let (rp, ra) = (rp.max(ev.pos(s)), ra.max(ev.att(s)));
                         (buf.pos_radius[o], buf.att_radius[o]) = (rp, ra);
                         last = (rp, ra);
                     }
@@ -964,6 +967,7 @@ impl DebrisPredictor {
                     &mut buf.axis[rows.clone()],
                 );
                 let n_cal = tr.axis.radii(floor[1], factor, &mut buf.axis_radius[rows.clone()]);
+                self.models.events.floor_att(&mut buf.axis_radius[k * hb..k * hb + n_cal]);
                 let (ar, at) = (&mut buf.axis_radius[rows.clone()], &buf.att_radius[rows]);
                 ar[n_cal..].copy_from_slice(&at[n_cal..]);
             } else {
@@ -985,7 +989,9 @@ impl DebrisPredictor {
             }
             let mut er = [0.0; crate::calib::MAX_STEPS];
             let n_e = if physics {
-                tr.euler.radii(floor[1], factor, &mut er[..h.min(crate::calib::MAX_STEPS)])
+                let n = tr.euler.radii(floor[1], factor, &mut er[..h.min(crate::calib::MAX_STEPS)]);
+                self.models.events.floor_att(&mut er[..n]);
+                n
             } else {
                 0
             };

@@ -25,15 +25,22 @@ fn small_study() {
         assert!(r.bound_m > 0.0 && r.surface_err_m >= 0.0 && r.bound_ratio > 0.0, "{r:?}");
     }
     // The online-calibrated bound of the shipped method contains the true shape (it measures
-    // 97.5-100 % per scene and horizon in this small, seeded study; the README's medium study
-    // states the figures), and is not just huge: at most 40x the median surface error (it
-    // measures 5-35x; where the planner takes the bounding sphere, the error is how far the
-    // true shape leaves it, which a rod's tumbling hardly does).
+    // 98-100 % per scene and horizon in this small, seeded study; the README's medium study
+    // states the figures), and is not just huge: at most 40x the median surface error where
+    // the training runs have no events (it measures 6-19x). Tumbling-rods' training runs
+    // have the impulse at 10 s (0.11 m/s, 0.58 rad/s), and the bound carries it
+    // (`dkrrt_predictor::events`): there the ratio is against how far the true shape leaves
+    // the bounding sphere, which a rod's tumbling hardly does (67x at 4 s), so the bound
+    // itself is checked: under 1 m, less than half the longest rod (2.4 m).
     for scene in &cfg.scenes {
         for &h in &cfg.horizons {
             let r = row(&rows, scene, "deep-koopman-online", h);
             assert!(r.contained >= 0.97, "{r:?}");
-            assert!(r.bound_ratio <= 40.0, "{r:?}");
+            if scene == "tumbling-rods" {
+                assert!(r.bound_m <= 1.0, "{r:?}");
+            } else {
+                assert!(r.bound_ratio <= 40.0, "{r:?}");
+            }
         }
     }
     let cal = dkrrt_predictor::eval::calibration_text(&rows, "deep-koopman-online");
@@ -127,7 +134,13 @@ mod dual_ridge {
                 x[1] += 0.5 * accel * dt * dt;
                 x[4] += accel * dt;
             }
-            segments.push(Segment { id: i, t0: 0.0, est: states[..len].to_vec(), truth: states });
+            segments.push(Segment {
+                id: i,
+                t0: 0.0,
+                est: states[..len].to_vec(),
+                truth: states,
+                events: Vec::new(),
+            });
         }
         TrainingSet { dt, horizon: h, segments }
     }

@@ -304,6 +304,37 @@ fn published_bounds_are_calibrated_online_and_monotone() {
 }
 
 #[test]
+fn a_calibrated_bound_is_never_below_the_event_allowance() {
+    // The object of `published_bounds_are_calibrated_online_and_monotone`, with models whose
+    // training forecasts all had an event from step 3 on (errors 0.03 m / 0.04 rad): the
+    // allowance is 1.5 × those from step 3, and the calibrated bound of the first steps may not
+    // go below it, though the object itself never shows an event.
+    use dkrrt_predictor::events::{EventAllowance, Sample};
+    let errs: Vec<[f64; 40]> =
+        (0..50).map(|_| std::array::from_fn(|k| if k >= 2 { 0.03 } else { 0.0 })).collect();
+    let atts: Vec<[f64; 40]> =
+        (0..50).map(|_| std::array::from_fn(|k| if k >= 2 { 0.04 } else { 0.0 })).collect();
+    let samples = errs.iter().zip(&atts).map(|(p, a)| Sample { first_event: Some(3), pos: p, att: a });
+    let mut models = Models::constant_velocity(0.1, 40, 0.0, 0.05, 0.05);
+    models.events = EventAllowance::fit(samples, 40, 0.005, 1.5);
+    assert!((models.events.pos(3) - 0.045).abs() < 1e-12 && models.events.pos(2) == 0.0);
+    let mut pr = DebrisPredictor::new(models.clone(), PredictorConfig::default());
+    let mut buf = ForecastBuffer::for_predictor(&pr);
+    for k in 0..400 {
+        let t = k as f64 * 0.02;
+        let (p, q) = pose(t);
+        pr.observe(&obs(3, t, p, q));
+        pr.forecast(&mut buf);
+    }
+    let cw = pr.config().calib_steps;
+    assert!(buf.pos_radius(0, 1) < 0.02 && buf.att_radius(0, 1) < 0.03, "calibrated where no event falls");
+    for k in 3..=cw {
+        assert!(buf.pos_radius(0, k) >= models.events.pos(k) - 1e-12, "step {k}: {}", buf.pos_radius(0, k));
+        assert!(buf.att_radius(0, k) >= models.events.att(k) - 1e-12, "step {k}: {}", buf.att_radius(0, k));
+    }
+}
+
+#[test]
 fn boxes_get_the_torque_free_attitude_beyond_the_calibrated_window() {
     // Tumbling boxes and panels (ids 2, 3, 5, 7) and rods; observed for 5.9 s, checked 4 s
     // later (before the scene's first event at 10 s).

@@ -144,6 +144,13 @@ impl EventSpec {
             EventSpec::Impulse { t, .. } | EventSpec::Split { t, .. } => *t,
         }
     }
+
+    /// The object it acts on: an impulse's target, a split's parent.
+    pub fn target(&self) -> u32 {
+        match self {
+            EventSpec::Impulse { id, .. } | EventSpec::Split { id, .. } => *id,
+        }
+    }
 }
 
 /// A complete debris scene.
