@@ -43,9 +43,7 @@ impl ErrorBound {
             for r in 0..runs {
                 col[r] = errors[r * h + k];
             }
-            col.sort_by(|a, b| a.total_cmp(b));
-            let idx = ((quantile * (runs - 1) as f64).ceil() as usize).min(runs - 1);
-            running = running.max(margin * col[idx]);
+            running = running.max(margin * self::quantile(&mut col, quantile));
             out.base[k] = running;
         }
         out
@@ -93,6 +91,17 @@ impl ErrorBound {
     pub fn exceeds(&self, k: usize, err: f64, factor: f64) -> bool {
         err > factor * self.radius(k)
     }
+}
+
+/// The `level` quantile of `v`: the sample at index `⌈level·(n − 1)⌉` of the sorted values
+/// (NaN for an empty set). Sorts `v`.
+pub fn quantile(v: &mut [f64], level: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let i = ((level.clamp(0.0, 1.0) * (v.len() - 1) as f64).ceil() as usize).min(v.len() - 1);
+    v[i]
 }
 
 /// Validation errors for [`ErrorBound::from_residuals`]: for every start index of every

@@ -19,7 +19,7 @@
 //! training runs have no events gets no allowance. The allowance is non-decreasing in `k`
 //! (like every bound here), per channel (position m, attitude rad).
 
-use dkrrt_koopman::bound::MAX_HORIZON;
+use dkrrt_koopman::bound::{quantile, MAX_HORIZON};
 
 /// Per-step allowance for unforeseeable events, position and attitude.
 #[derive(Debug, Clone, PartialEq)]
@@ -100,17 +100,6 @@ impl EventAllowance {
     pub fn share(&self, k: usize) -> f64 {
         self.share[k.clamp(1, self.h) - 1]
     }
-}
-
-/// The `level` quantile of `v` (the sample at index `⌈level·(n − 1)⌉` of the sorted values;
-/// NaN for an empty set). Sorts `v`.
-fn quantile(v: &mut [f64], level: f64) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let i = ((level.clamp(0.0, 1.0) * (v.len() - 1) as f64).ceil() as usize).min(v.len() - 1);
-    v[i]
 }
 
 /// The first step `k ≥ 1` of a forecast from `t0` on a grid of `dt` that an event at one of
