@@ -60,6 +60,66 @@ pub struct PoseEstimate {
     /// Valid pixels next to a valid pixel of another instance (or the arm) that is nearer by
     /// more than [`OCCLUSION_STEP`]: something in front may hide part of the object there.
     pub occluded: usize,
+    /// The weighted moments of the pixels whose rays lie in the camera's own 90° × 90° square
+    /// pyramid about its optical axis, about its optical centre: the six faces of a cube rig
+    /// (optical axes along ±x, ±y, ±z, turned by right angles) split the directions around
+    /// their common centre into these pyramids without overlap, so the parts of an object
+    /// several faces cut add up to its view from that centre, each point once ([`Moments::add`]).
+    pub own: Moments,
+}
+
+/// Weighted point moments about a fixed origin: `w = Σ wᵢ`, `s = Σ wᵢ dᵢ`, `ss = Σ wᵢ dᵢ dᵢᵀ`
+/// (`dᵢ` the point less the origin).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Moments {
+    pub w: f64,
+    pub s: [f64; 3],
+    pub ss: [[f64; 3]; 3],
+}
+
+impl Moments {
+    /// Adds another set of points' moments about the same origin.
+    pub fn add(&mut self, o: &Moments) {
+        self.w += o.w;
+        for i in 0..3 {
+            self.s[i] += o.s[i];
+            for j in 0..3 {
+                self.ss[i][j] += o.ss[i][j];
+            }
+        }
+    }
+
+    /// The points' centroid (`origin` added back), covariance, principal axes and spreads
+    /// (the fields of a [`PoseEstimate`] these give; the rest left at `Default`), or `None`
+    /// without weight.
+    pub fn estimate(&self, origin: &[f64; 3]) -> Option<PoseEstimate> {
+        if self.w <= 0.0 {
+            return None;
+        }
+        let n = self.w;
+        let mean = [self.s[0] / n, self.s[1] / n, self.s[2] / n];
+        let cov = Matrix3::from_fn(|i, j| self.ss[i][j] / n - mean[i] * mean[j]);
+        let (axes, spread) = principal(&cov);
+        Some(PoseEstimate {
+            centroid: std::array::from_fn(|i| origin[i] + mean[i]),
+            covariance: std::array::from_fn(|i| std::array::from_fn(|j| cov[(i, j)])),
+            axes,
+            spread,
+            ..PoseEstimate::default()
+        })
+    }
+}
+
+/// Principal axes (by decreasing spread) and spreads (standard deviations) of a covariance.
+fn principal(cov: &Matrix3<f64>) -> ([[f64; 3]; 3], [f64; 3]) {
+    let eig = SymmetricEigen::new(*cov);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    let axis = |k: usize| -> [f64; 3] {
+        let c: Vector3<f64> = eig.eigenvectors.column(order[k]).into();
+        [c[0], c[1], c[2]]
+    };
+    ([axis(0), axis(1), axis(2)], std::array::from_fn(|k| eig.eigenvalues[order[k]].max(0.0).sqrt()))
 }
 
 /// Depth step (m) by which a neighbouring pixel of another instance must be nearer for a
@@ -77,6 +137,7 @@ struct Sums {
     origin: [f64; 3],
     cut: usize,
     occluded: usize,
+    own: Moments,
 }
 
 /// The fewest valid pixels an instance needs to be estimated ([`Extractor::min_points`]'s
@@ -169,6 +230,17 @@ impl Extractor {
                         s.ss[i][j] += w * d[i] * d[j];
                     }
                 }
+                if c[0].abs() <= z && c[1].abs() <= z {
+                    let d: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
+                    let o = &mut s.own;
+                    o.w += w;
+                    for i in 0..3 {
+                        o.s[i] += w * d[i];
+                        for j in 0..3 {
+                            o.ss[i][j] += w * d[i] * d[j];
+                        }
+                    }
+                }
             }
         }
         let mut n_out = 0;
@@ -180,22 +252,17 @@ impl Extractor {
             let n = s.w;
             let mean = [s.s[0] / n, s.s[1] / n, s.s[2] / n];
             let cov = Matrix3::from_fn(|i, j| s.ss[i][j] / n - mean[i] * mean[j]);
-            let eig = SymmetricEigen::new(cov);
-            let mut order = [0usize, 1, 2];
-            order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-            let axis = |k: usize| -> [f64; 3] {
-                let c: Vector3<f64> = eig.eigenvectors.column(order[k]).into();
-                [c[0], c[1], c[2]]
-            };
+            let (axes, spread) = principal(&cov);
             out[n_out] = PoseEstimate {
                 instance: inst as u8,
                 points: s.n,
                 centroid: std::array::from_fn(|i| s.origin[i] + mean[i]),
                 covariance: std::array::from_fn(|i| std::array::from_fn(|j| cov[(i, j)])),
-                axes: [axis(0), axis(1), axis(2)],
-                spread: std::array::from_fn(|k| eig.eigenvalues[order[k]].max(0.0).sqrt()),
+                axes,
+                spread,
                 cut: s.cut,
                 occluded: s.occluded,
+                own: s.own,
             };
             n_out += 1;
         }

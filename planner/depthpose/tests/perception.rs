@@ -560,3 +560,62 @@ fn a_small_object_of_a_few_pixels_is_reported() {
     }
     assert!(seen >= 2, "views of 3–5 pixels rendered: {seen}");
 }
+
+/// An object across the edge between two faces of a cube rig, which neither face shows whole,
+/// is located from both faces' parts together (each direction counted once, by the face whose
+/// own square pyramid holds it), not from one face's part: that part's centroid lies near
+/// the edge it is cut at, off the object's centre by a good share of its size.
+#[test]
+fn an_object_across_two_faces_of_a_rig_is_located_from_both_parts() {
+    use dkrrt_msg::DEBRIS_PARTIAL;
+    use parry3d_f64::shape::SharedShape;
+    let rig = CameraConfig { faces: 6, fov_y_rad: std::f64::consts::FRAC_PI_2, ..exact() }.rig();
+    // Across the top edge of the +x face (its 90° side), its bottom edge, and across the
+    // side edges of +x and +y, which overlap (106° across): too large for either to hold.
+    let cases: [([f64; 3], f64); 3] = [([1.6, 0.2, 1.6], 0.35), ([1.5, -0.3, -1.5], 0.3), ([1.4, 1.4, 0.1], 0.6)];
+    for (centre, r) in cases {
+        let ball = (7, SharedShape::ball(r), centre, [1.0, 0.0, 0.0, 0.0], r);
+        let mut per = DepthPerception::default();
+        let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+        // Seen whole first, in the middle of the +x face at the same range.
+        let d = (centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2]).sqrt();
+        let ahead = (7, SharedShape::ball(r), [d, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], r);
+        assert_eq!(per.convert(&render(&[ahead], &rig[0], 0.9), &mut out), 1);
+        let whole_off = (out.items[0].p[0] - d).hypot(out.items[0].p[1]).hypot(out.items[0].p[2]);
+        let mut parts = Vec::new();
+        for cam in &rig {
+            let img = render(std::slice::from_ref(&ball), cam, 1.0);
+            assert!(per.convert(&img, &mut out) == 0, "no face shows it whole");
+            // What each face alone would have located it by: its part's.
+            let mut e = [dkrrt_depthpose::PoseEstimate::default(); 4];
+            let cam_i = dkrrt_depthpose::perception::intrinsics(&img);
+            let n = dkrrt_depthpose::Extractor::default().extract_with(
+                &cam_i,
+                |k| img.depth_mm[k] as f64 * 1e-3,
+                &img.instance[..img.width as usize * img.height as usize],
+                &mut e,
+            );
+            // Moved back along the ray by 2.83 × its thinnest spread (a bulky object's rule,
+            // module docs).
+            parts.extend(e[..n].iter().map(|e| {
+                let l = (e.centroid[0].powi(2) + e.centroid[1].powi(2) + e.centroid[2].powi(2)).sqrt();
+                e.centroid.map(|x| x + x / l * 2.83 * e.spread[2])
+            }));
+        }
+        assert!(parts.len() >= 2, "two faces or more cut it: {parts:?}");
+        let off = |p: &[f64; 3]| (0..3).map(|i| (p[i] - centre[i]).powi(2)).sum::<f64>().sqrt();
+        let best_part = parts.iter().map(off).fold(f64::INFINITY, f64::min);
+        assert!(best_part > whole_off + 0.05, "a part alone is well off: {best_part} vs {whole_off}");
+        // The next capture reports it, partial, from both parts.
+        let n = per.convert(&render(&[], &rig[0], 1.05), &mut out);
+        assert_eq!(n, 1);
+        let it = out.items[0];
+        assert_eq!((it.id, it.flags & DEBRIS_PARTIAL), (7, DEBRIS_PARTIAL));
+        // As a whole view from that range locates it (one face, the middle of its image).
+        assert!(
+            off(&it.p) < whole_off + 0.02,
+            "located {:.3} m off, a whole view {whole_off:.3} ({centre:?}, a part {best_part:.3} m off)",
+            off(&it.p)
+        );
+    }
+}

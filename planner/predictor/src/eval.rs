@@ -84,13 +84,14 @@ pub struct StudyRow {
     pub pub_att_err_rad: f64,
     /// Number of (instant, track) samples.
     pub n: usize,
-    /// Calibration: share of samples whose true shape lies inside the predicted shape inflated
+    /// Calibration: share of samples whose true body (a convex fragment: its hull, not the box
+    /// its descriptor gives; [`TrueBody`]) lies inside the predicted shape inflated
     /// by the published bound (`sigma_m`, or the bounding sphere by `sigma_pos_m` where the
     /// planner uses it; [`dkrrt_collision::bounds`]).
     pub contained: f64,
     /// Median published bound (the inflation the planner uses, without its margin), m.
     pub bound_m: f64,
-    /// Median surface error (the inflation that would just contain the true shape), m.
+    /// Median surface error (the inflation that would just contain the true body), m.
     pub surface_err_m: f64,
     /// `bound_m / surface_err_m`.
     pub bound_ratio: f64,
@@ -232,6 +233,10 @@ pub struct Recording {
     /// parent (its fragment is a new object). What no forecast of the object can foresee;
     /// [`Models::fit_bounds`] sizes the bound's allowance for them from these.
     pub events: Vec<(f64, u32)>,
+    /// The body-frame vertices of every object whose body is a convex hull (a fragment), whose
+    /// descriptor in `shapes` is only its bounding box: the containment measure judges the
+    /// hull, the true surface.
+    pub hulls: Vec<(u32, Vec<[f64; 3]>)>,
 }
 
 /// The named scene with seeded perturbations of every object's initial state: position
@@ -285,6 +290,7 @@ pub fn record(
         shapes: Vec::new(),
         obs_shapes: Vec::new(),
         events: Vec::new(),
+        hulls: Vec::new(),
     };
     for k in 0..=steps {
         if k > 0 {
@@ -305,6 +311,9 @@ pub fn record(
             if !rec.shapes.iter().any(|s| s.0 == d.id) {
                 let desc = dkrrt_collision::descriptor_of(d.props.shape.as_ref());
                 rec.shapes.push((d.id, desc, desc.bounding_radius()));
+                if let Some(v) = dkrrt_collision::hull_vertices(d.props.shape.as_ref()) {
+                    rec.hulls.push((d.id, v));
+                }
             }
         }
         buf.clear();
@@ -386,6 +395,37 @@ pub struct Errors {
     pub surface: Vec<Vec<(f64, f64)>>,
 }
 
+/// A true body as the containment measure judges it: its descriptor and bounding radius, and
+/// for a convex fragment the vertices of its hull (its descriptor is only the hull's box).
+#[derive(Debug, Clone, Copy)]
+pub struct TrueBody<'a> {
+    pub shape: &'a DebrisShape,
+    pub radius: f64,
+    pub hull: Option<&'a [[f64; 3]]>,
+}
+
+impl TrueBody<'_> {
+    /// How far this body, at `p_true`, `q_true`, reaches beyond the predicted shape `pred`
+    /// (bounding radius `pred_radius`) at `p_pred`, `q_pred`, m (0 inside): for a hull its
+    /// vertices ([`dkrrt_collision::bounds::points_excess`]), else its descriptor
+    /// ([`dkrrt_collision::bounds::shape_excess`]).
+    pub fn excess(
+        &self,
+        pred: &DebrisShape,
+        pred_radius: f64,
+        p_pred: &[f64; 3],
+        q_pred: &[f64; 4],
+        p_true: &[f64; 3],
+        q_true: &[f64; 4],
+    ) -> f64 {
+        use dkrrt_collision::bounds::{points_excess, shape_excess};
+        match self.hull {
+            Some(v) => points_excess(pred, pred_radius, p_pred, q_pred, v, p_true, q_true),
+            None => shape_excess(pred, pred_radius, p_pred, q_pred, self.shape, self.radius, p_true, q_true),
+        }
+    }
+}
+
 /// The published bound of forecast `j`, `k` steps ahead, and the true shape's excess over the
 /// predicted shape as the planner reads it: `(bound, excess)`, m. The planner takes the object
 /// to lie both in the predicted shape inflated by the surface bound and in the bounding sphere
@@ -394,7 +434,7 @@ pub struct Errors {
 /// that one, so `excess ≤ bound` holds exactly when the truth lies in both. The predicted pose
 /// and bound are built as the predictor process publishes them (a
 /// rod: its axis by precession), with the shape published (`shape`, `radius`: an estimate, or
-/// the true one); the truth is the true shape (`true_shape`, `true_radius`) at the true pose.
+/// the true one); the truth is the true body `body` at the true pose.
 #[allow(clippy::too_many_arguments)]
 pub fn surface_sample(
     buf: &ForecastBuffer,
@@ -402,11 +442,10 @@ pub fn surface_sample(
     k: usize,
     shape: &DebrisShape,
     radius: f64,
-    true_shape: &DebrisShape,
-    true_radius: f64,
+    body: &TrueBody,
     truth: &[f64; N],
 ) -> (f64, f64) {
-    use dkrrt_collision::bounds::{shape_excess, sphere_is_tighter, surface_sigma};
+    use dkrrt_collision::bounds::{sphere_is_tighter, surface_sigma};
     let x = buf.state(j, k);
     let q = buf.published_attitude(j, k, shape);
     let p = [x[0], x[1], x[2]];
@@ -415,8 +454,8 @@ pub fn surface_sample(
     let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
     // The bounding sphere of the published radius, inflated by the position bound.
     let ball = DebrisShape::default();
-    let in_ball = (pos, shape_excess(&ball, radius, &p, &q, true_shape, true_radius, &pt, &qt));
-    let in_shape = (sigma, shape_excess(shape, radius, &p, &q, true_shape, true_radius, &pt, &qt));
+    let in_ball = (pos, body.excess(&ball, radius, &p, &q, &pt, &qt));
+    let in_shape = (sigma, body.excess(shape, radius, &p, &q, &pt, &qt));
     let (tighter, other) = if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
         (in_ball, in_shape)
     } else {
@@ -493,7 +532,9 @@ pub fn evaluate(
                     let (est, er) = published(buf.id(j)).unwrap_or((DebrisShape::default(), *r));
                     let q = buf.published_attitude(j, k, &est);
                     out.att_pub[hj].push(symmetric_angle(&q, &truth[6..10], shape));
-                    out.surface[hj].push(surface_sample(&buf, j, k, &est, er, shape, *r, &truth));
+                    let hull = rec.hulls.iter().find(|h| h.0 == buf.id(j)).map(|h| &h.1[..]);
+                    let body = TrueBody { shape, radius: *r, hull };
+                    out.surface[hj].push(surface_sample(&buf, j, k, &est, er, &body, &truth));
                 }
             }
         }

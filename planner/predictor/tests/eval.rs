@@ -228,3 +228,32 @@ fn the_symmetric_attitude_error_ignores_what_the_shape_cannot_show() {
     let q = about([0.3, -0.4, 0.5], 1.3);
     assert!(symmetric_angle(&q, &t, &slab) <= dkrrt_predictor::filter::quat_angle(&q, &t) + 1e-12);
 }
+
+/// A convex fragment's true surface is its hull, not the box its descriptor gives: sparse-slow
+/// object 4 is one. A ball about its centre of mass as large as its farthest vertex holds it;
+/// judged by its box, it would stick out by the box's empty corners.
+#[test]
+fn a_fragment_is_judged_by_its_hull() {
+    use dkrrt_debris::{Scene, SensorConfig};
+    use dkrrt_msg::DebrisShape;
+    use dkrrt_predictor::eval::{record, TrueBody};
+    let rec = record(&Scene::named("sparse-slow").unwrap(), SensorConfig::default(), 0.1, 0.01, 1).unwrap();
+    let ids: Vec<u32> = rec.hulls.iter().map(|h| h.0).collect();
+    assert_eq!(ids, vec![4], "only the convex fragment has a hull");
+    let (_, desc, r) = rec.shapes.iter().find(|s| s.0 == 4).unwrap();
+    let v = &rec.hulls[0].1;
+    let far = v.iter().map(|x| (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt()).fold(0.0, f64::max);
+    assert!(far < r - 0.05, "the box's corners lie beyond the hull: {far} vs {r}");
+    let (p, q) = ([1.0, -2.0, 0.5], [0.9, 0.1, -0.3, 0.3]);
+    let n = q.iter().map(|x: &f64| x * x).sum::<f64>().sqrt();
+    let q = q.map(|x| x / n);
+    let ball = DebrisShape::sphere(far);
+    let hull = TrueBody { shape: desc, radius: *r, hull: Some(v) };
+    let boxed = TrueBody { shape: desc, radius: *r, hull: None };
+    assert!(hull.excess(&ball, far, &p, &q, &p, &q) < 1e-12);
+    assert!(boxed.excess(&ball, far, &p, &q, &p, &q) > 0.05);
+    // Moved 0.1 m, the hull sticks out by at most that.
+    let moved = [p[0] + 0.1, p[1], p[2]];
+    let e = hull.excess(&ball, far, &moved, &q, &p, &q);
+    assert!(e > 0.0 && e <= 0.1 + 1e-12, "{e}");
+}

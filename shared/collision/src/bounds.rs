@@ -112,45 +112,21 @@ pub fn shape_excess(
     p_true: &[f64; 3],
     q_true: &[f64; 4],
 ) -> f64 {
-    let at = |sh: &DebrisShape, p: &[f64; 3], q: &[f64; 4], local: &[f64; 3]| {
-        let l = [local[0] + sh.offset[0], local[1] + sh.offset[1], local[2] + sh.offset[2]];
-        let r = quat_rotate(q, &l);
-        [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
-    };
-    let d = &pred.dims;
-    let core = match ShapeKind::from_u32(pred.kind) {
-        Some(ShapeKind::Sphere) => Core::Point(at(pred, p_pred, q_pred, &[0.0; 3]), d[0]),
-        Some(ShapeKind::Capsule) => Core::Segment(
-            at(pred, p_pred, q_pred, &[0.0, 0.0, -d[0]]),
-            at(pred, p_pred, q_pred, &[0.0, 0.0, d[0]]),
-            d[1],
-        ),
-        Some(ShapeKind::Box) => Core::Solid(
-            at(pred, p_pred, q_pred, &[0.0; 3]),
-            [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]],
-            *d,
-        ),
-        Some(ShapeKind::Disc) => Core::Disc(
-            at(pred, p_pred, q_pred, &[0.0; 3]),
-            [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]],
-            d[0],
-            d[1],
-        ),
-        _ => Core::Point(*p_pred, pred_radius),
-    };
+    let core = Core::of(pred, pred_radius, p_pred, q_pred);
+    let at = |local: &[f64; 3]| posed(truth, p_true, q_true, local);
     let t = &truth.dims;
     let mut worst = f64::NEG_INFINITY;
     let mut point = |x: [f64; 3], r: f64| worst = worst.max(core.excess(&x, r));
     match ShapeKind::from_u32(truth.kind) {
-        Some(ShapeKind::Sphere) => point(at(truth, p_true, q_true, &[0.0; 3]), t[0]),
+        Some(ShapeKind::Sphere) => point(at(&[0.0; 3]), t[0]),
         Some(ShapeKind::Capsule) => {
-            point(at(truth, p_true, q_true, &[0.0, 0.0, -t[0]]), t[1]);
-            point(at(truth, p_true, q_true, &[0.0, 0.0, t[0]]), t[1]);
+            point(at(&[0.0, 0.0, -t[0]]), t[1]);
+            point(at(&[0.0, 0.0, t[0]]), t[1]);
         }
         Some(ShapeKind::Box) => {
             for c in 0..8 {
                 let s = |i: usize| if c >> i & 1 == 1 { t[i] } else { -t[i] };
-                point(at(truth, p_true, q_true, &[s(0), s(1), s(2)]), 0.0);
+                point(at(&[s(0), s(1), s(2)]), 0.0);
             }
         }
         Some(ShapeKind::Disc) => {
@@ -158,7 +134,7 @@ pub fn shape_excess(
             for k in 0..n {
                 let (sin, cos) = (std::f64::consts::TAU * k as f64 / n as f64).sin_cos();
                 for z in [-t[1], t[1]] {
-                    point(at(truth, p_true, q_true, &[t[0] * cos, t[0] * sin, z]), 0.0);
+                    point(at(&[t[0] * cos, t[0] * sin, z]), 0.0);
                 }
             }
         }
@@ -169,6 +145,35 @@ pub fn shape_excess(
 
 /// Points taken on each rim circle of a true disc ([`shape_excess`]).
 pub const RIM_POINTS: usize = 256;
+
+/// [`shape_excess`] for a true body given by the points whose hull it is (body frame, e.g. a
+/// convex fragment's vertices about its centre of mass, which its descriptor only bounds by
+/// its box): the smallest `s` such that every point, posed at `p_true`, `q_true`, lies in the
+/// predicted shape inflated by `s` (exact: the inflated shape is convex), m (0 inside).
+pub fn points_excess(
+    pred: &DebrisShape,
+    pred_radius: f64,
+    p_pred: &[f64; 3],
+    q_pred: &[f64; 4],
+    points: &[[f64; 3]],
+    p_true: &[f64; 3],
+    q_true: &[f64; 4],
+) -> f64 {
+    let core = Core::of(pred, pred_radius, p_pred, q_pred);
+    let mut worst = 0.0f64;
+    for x in points {
+        let r = quat_rotate(q_true, x);
+        worst = worst.max(core.excess(&[p_true[0] + r[0], p_true[1] + r[1], p_true[2] + r[2]], 0.0));
+    }
+    worst
+}
+
+/// A body-frame point `local` of `sh` (its offset added), posed at `p`, `q`.
+fn posed(sh: &DebrisShape, p: &[f64; 3], q: &[f64; 4], local: &[f64; 3]) -> [f64; 3] {
+    let l = [local[0] + sh.offset[0], local[1] + sh.offset[1], local[2] + sh.offset[2]];
+    let r = quat_rotate(q, &l);
+    [p[0] + r[0], p[1] + r[1], p[2] + r[2]]
+}
 
 /// A predicted shape as a core swept by a ball ([`shape_excess`]).
 enum Core {
@@ -183,6 +188,21 @@ enum Core {
 }
 
 impl Core {
+    /// The predicted shape `pred` (bounding radius `pred_radius`: an unknown shape's sphere)
+    /// posed at `p_pred`, `q_pred`.
+    fn of(pred: &DebrisShape, pred_radius: f64, p_pred: &[f64; 3], q_pred: &[f64; 4]) -> Core {
+        let at = |local: &[f64; 3]| posed(pred, p_pred, q_pred, local);
+        let inv = [q_pred[0], -q_pred[1], -q_pred[2], -q_pred[3]];
+        let d = &pred.dims;
+        match ShapeKind::from_u32(pred.kind) {
+            Some(ShapeKind::Sphere) => Core::Point(at(&[0.0; 3]), d[0]),
+            Some(ShapeKind::Capsule) => Core::Segment(at(&[0.0, 0.0, -d[0]]), at(&[0.0, 0.0, d[0]]), d[1]),
+            Some(ShapeKind::Box) => Core::Solid(at(&[0.0; 3]), inv, *d),
+            Some(ShapeKind::Disc) => Core::Disc(at(&[0.0; 3]), inv, d[0], d[1]),
+            _ => Core::Point(*p_pred, pred_radius),
+        }
+    }
+
     /// How far the ball (`x`, `r`) reaches beyond this shape: its farthest point's distance to
     /// the core less the core's radius. From a point or a segment the farthest point lies `r`
     /// beyond `x`'s own distance; from a box too for `x` outside, and for `x` inside `r` less

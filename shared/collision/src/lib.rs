@@ -338,6 +338,13 @@ pub fn descriptor_of(shape: &dyn Shape) -> DebrisShape {
     )
 }
 
+/// The vertices (body frame) of a shape that is a convex hull, whose [`descriptor_of`] is only
+/// its bounding box: what the body's true surface is the hull of. `None` for the shapes the
+/// descriptor gives exactly (spheres, capsules, boxes).
+pub fn hull_vertices(shape: &dyn Shape) -> Option<Vec<[f64; 3]>> {
+    shape.as_convex_polyhedron().map(|c| c.points().iter().map(|p| [p.x, p.y, p.z]).collect())
+}
+
 /// A link–obstacle pair within the contact margin.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactPair {

@@ -212,6 +212,61 @@ fn descriptors_enclose_the_exact_shapes() {
 }
 
 #[test]
+fn a_hull_is_judged_by_its_vertices_not_by_its_box() {
+    use dkrrt_collision::bounds::{points_excess, shape_excess};
+    let pts: Vec<PVec> =
+        [[0.3, 0.0, 0.0], [-0.2, 0.15, 0.0], [-0.1, -0.2, 0.05], [0.0, 0.0, 0.25], [0.05, 0.05, -0.2], [0.2, 0.2, 0.1]]
+            .iter()
+            .map(|p| PVec::new(p[0], p[1], p[2]))
+            .collect();
+    let hull = SharedShape::convex_hull(&pts).unwrap();
+    let desc = descriptor_of(hull.as_ref());
+    let v = hull_vertices(hull.as_ref()).expect("a hull has vertices");
+    assert!(v.len() >= 4 && v.len() <= pts.len(), "{}", v.len());
+    // Spheres, capsules and boxes are their descriptors.
+    assert!(hull_vertices(SharedShape::ball(0.3).as_ref()).is_none());
+    assert!(hull_vertices(SharedShape::capsule_z(0.4, 0.03).as_ref()).is_none());
+    assert!(hull_vertices(SharedShape::cuboid(0.1, 0.2, 0.3).as_ref()).is_none());
+    let mut rng = SmallRng::seed_from_u64(17);
+    let unit_q = |rng: &mut SmallRng| {
+        let v: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        v.map(|x| x / n)
+    };
+    let preds = [
+        DebrisShape::sphere(0.3),
+        DebrisShape::capsule(0.3, 0.1),
+        DebrisShape::cuboid([0.3, 0.2, 0.1], [0.05, 0.0, 0.0]),
+        DebrisShape::disc(0.35, 0.02),
+    ];
+    let mut below = 0;
+    for i in 0..400 {
+        let pred = &preds[i % preds.len()];
+        let (qp, qt) = (unit_q(&mut rng), unit_q(&mut rng));
+        let pp = [rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2), rng.random_range(-0.2..0.2)];
+        let pt = [0.0; 3];
+        let got = points_excess(pred, 0.4, &pp, &qp, &v, &pt, &qt);
+        // Oracle: each vertex as a true ball of radius 0 at its posed place.
+        let brute = v
+            .iter()
+            .map(|x| {
+                let w = quat_rotate(&qt, x);
+                shape_excess(pred, 0.4, &pp, &qp, &DebrisShape::sphere(0.0), 0.0, &w, &[1.0, 0.0, 0.0, 0.0])
+            })
+            .fold(0.0f64, f64::max);
+        assert!((got - brute).abs() < 1e-12, "{got} vs {brute}");
+        // The hull lies in its box: never more than the box's corners reach.
+        let boxed = shape_excess(pred, 0.4, &pp, &qp, &desc, desc.bounding_radius(), &pt, &qt);
+        assert!(got <= boxed + 1e-12, "{got} vs box {boxed}");
+        below += (got < boxed - 0.01) as usize;
+    }
+    // The box's empty corners are what the hull does not reach.
+    assert!(below > 100, "{below}");
+    // At its own pose, inside its own box.
+    assert_eq!(points_excess(&desc, 0.0, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0], &v, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0]), 0.0);
+}
+
+#[test]
 fn no_arm_point_moves_faster_than_the_lever_bound() {
     let poser = ArmPoser::new(ArmModel::default_arm());
     let lever = *poser.lever_arms();
