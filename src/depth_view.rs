@@ -53,6 +53,7 @@ pub fn record_depth(
     let (rate, latency) = (cams[0].rate_hz, cams[0].latency_s);
     let mut frame = Box::new(<DebrisObservation as Zeroed>::zeroed());
     let mut per = front_end();
+    per.set_depth_noise(cams[0].noise_base_m, cams[0].noise_quad_per_m);
     let (mut obs, mut obs_shapes) = (Vec::new(), Vec::new());
     let (mut ep, mut ea) = (Vec::new(), Vec::new());
     // The capture before this one (stamp, time, number): partial views come one capture late.

@@ -285,6 +285,8 @@ impl PredictorCore {
             };
             core.perception = learned_perception(net);
         }
+        // The camera's depth noise, which the front end takes out of the views' spreads.
+        core.perception.set_depth_noise(sc.camera.noise_base_m, sc.camera.noise_quad_per_m);
         Ok(core)
     }
 

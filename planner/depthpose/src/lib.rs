@@ -8,7 +8,8 @@
 //!   to its near end by perspective. For a convex object it lies between the object's centre
 //!   and the camera (a ball's about 2/3 of its radius out: its pixels sample the surface
 //!   evenly over its image, not over its area). The covariance says how the points spread
-//!   (extent, not uncertainty of the centre), with the same weights.
+//!   (extent, not uncertainty of the centre), with the same weights, less the expected
+//!   share of the sensor's depth noise when its model is given ([`Extractor::depth_noise`]).
 //! * The principal axes are sign-free directions (an axis and its opposite are the same): a
 //!   rod's first axis is its axis, a panel's last axis its normal. A symmetric shape's axes
 //!   are as ambiguous as the shape.
@@ -75,6 +76,8 @@ pub struct Moments {
     pub w: f64,
     pub s: [f64; 3],
     pub ss: [[f64; 3]; 3],
+    /// `Σ wᵢ Nᵢ`: the depth noise's share of `ss` ([`Extractor::depth_noise`]).
+    pub nn: [[f64; 3]; 3],
 }
 
 impl Moments {
@@ -85,6 +88,7 @@ impl Moments {
             self.s[i] += o.s[i];
             for j in 0..3 {
                 self.ss[i][j] += o.ss[i][j];
+                self.nn[i][j] += o.nn[i][j];
             }
         }
     }
@@ -98,7 +102,7 @@ impl Moments {
         }
         let n = self.w;
         let mean = [self.s[0] / n, self.s[1] / n, self.s[2] / n];
-        let cov = Matrix3::from_fn(|i, j| self.ss[i][j] / n - mean[i] * mean[j]);
+        let cov = Matrix3::from_fn(|i, j| (self.ss[i][j] - self.nn[i][j]) / n - mean[i] * mean[j]);
         let (axes, spread) = principal(&cov);
         Some(PoseEstimate {
             centroid: std::array::from_fn(|i| origin[i] + mean[i]),
@@ -138,6 +142,8 @@ struct Sums {
     cut: usize,
     occluded: usize,
     own: Moments,
+    /// The depth noise's share of `ss` ([`Extractor::depth_noise`]).
+    nn: [[f64; 3]; 3],
 }
 
 /// The fewest valid pixels an instance needs to be estimated ([`Extractor::min_points`]'s
@@ -155,11 +161,16 @@ pub struct Extractor {
     sums: Box<[Sums; 256]>,
     /// Instances with fewer valid pixels are not estimated.
     pub min_points: usize,
+    /// The sensor's depth noise, σ(z) = `depth_noise[0]` + `depth_noise[1]`·z² (m; z the
+    /// depth): it moves each point along its ray and so spreads the points of a far object
+    /// along the line of sight (a 0.15 m ball 9 m out, σ = 0.12 m, spread 0.17 m instead of
+    /// 0.075 m). Its expected share is taken out of the covariance. Zero: none known.
+    pub depth_noise: [f64; 2],
 }
 
 impl Default for Extractor {
     fn default() -> Self {
-        Extractor { sums: Box::new([Sums::default(); 256]), min_points: MIN_POINTS }
+        Extractor { sums: Box::new([Sums::default(); 256]), min_points: MIN_POINTS, depth_noise: [0.0; 2] }
     }
 }
 
@@ -230,6 +241,20 @@ impl Extractor {
                         s.ss[i][j] += w * d[i] * d[j];
                     }
                 }
+                // The noise moves the point by δz along (x/z, y/z, 1), in the frame: its second
+                // moment is σ(z)² times that vector's outer product.
+                let sig = self.depth_noise[0] + self.depth_noise[1] * z * z;
+                let mut nn = [[0.0; 3]; 3];
+                if sig > 0.0 {
+                    let a = [c[0] / z, c[1] / z, 1.0];
+                    let g: [f64; 3] = std::array::from_fn(|i| r[i][0] * a[0] + r[i][1] * a[1] + r[i][2] * a[2]);
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            nn[i][j] = w * sig * sig * g[i] * g[j];
+                            s.nn[i][j] += nn[i][j];
+                        }
+                    }
+                }
                 if c[0].abs() <= z && c[1].abs() <= z {
                     let d: [f64; 3] = std::array::from_fn(|i| p[i] - cam.position[i]);
                     let o = &mut s.own;
@@ -238,6 +263,7 @@ impl Extractor {
                         o.s[i] += w * d[i];
                         for j in 0..3 {
                             o.ss[i][j] += w * d[i] * d[j];
+                            o.nn[i][j] += nn[i][j];
                         }
                     }
                 }
@@ -251,7 +277,7 @@ impl Extractor {
             }
             let n = s.w;
             let mean = [s.s[0] / n, s.s[1] / n, s.s[2] / n];
-            let cov = Matrix3::from_fn(|i, j| s.ss[i][j] / n - mean[i] * mean[j]);
+            let cov = Matrix3::from_fn(|i, j| (s.ss[i][j] - s.nn[i][j]) / n - mean[i] * mean[j]);
             let (axes, spread) = principal(&cov);
             out[n_out] = PoseEstimate {
                 instance: inst as u8,

@@ -309,6 +309,12 @@ impl DepthPerception {
         DepthPerception { model: Some(model), ..Self::default() }
     }
 
+    /// Tells the front end its camera's depth noise, σ(z) = `base_m` + `quad_per_m`·z² (m),
+    /// which it takes out of the views' spreads ([`Extractor::depth_noise`]).
+    pub fn set_depth_noise(&mut self, base_m: f64, quad_per_m: f64) {
+        self.extractor.depth_noise = [base_m, quad_per_m];
+    }
+
     /// Whether a learned axis model reads the attitudes.
     pub fn learned(&self) -> bool {
         self.model.is_some()

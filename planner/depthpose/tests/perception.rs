@@ -619,3 +619,48 @@ fn an_object_across_two_faces_of_a_rig_is_located_from_both_parts() {
         );
     }
 }
+
+/// The depth noise spreads a far object's points along the line of sight; told the sensor's
+/// noise model, the extractor takes its expected share out of the covariance, so far views
+/// spread about as much as noiseless ones.
+#[test]
+fn the_depth_noise_is_taken_out_of_the_spreads() {
+    use dkrrt_depthpose::{Extractor, PoseEstimate};
+    use parry3d_f64::shape::SharedShape;
+    let base = CameraConfig { enabled: true, ..CameraConfig::default() }.rig()[0];
+    let spreads = |cfg: &CameraConfig, noise: [f64; 2], d: f64| {
+        let ball = (7, SharedShape::ball(0.3), [d, 0.4, 0.3], [1.0, 0.0, 0.0, 0.0], 0.3);
+        let img = render(&[ball], cfg, 1.0);
+        let cam = dkrrt_depthpose::perception::intrinsics(&img);
+        let mut ex = Extractor::default();
+        ex.depth_noise = noise;
+        let mut e = [PoseEstimate::default(); 2];
+        let n = ex.extract_with(
+            &cam,
+            |k| img.depth_mm[k] as f64 * 1e-3,
+            &img.instance[..img.width as usize * img.height as usize],
+            &mut e,
+        );
+        assert_eq!(n, 1);
+        // The total variance: the noise adds σ² to it in expectation.
+        e[0].spread.iter().map(|s| s * s).sum::<f64>()
+    };
+    let model = [base.noise_base_m, base.noise_quad_per_m];
+    for d in [9.0, 11.0, 13.0] {
+        let clean = CameraConfig { noise_base_m: 0.0, noise_quad_per_m: 0.0, dropout: 0.0, ..base };
+        let truth = spreads(&clean, [0.0; 2], d);
+        // Without noise the correction is nothing.
+        assert_eq!(spreads(&clean, model.map(|_| 0.0), d), truth);
+        let (mut raw, mut fixed) = (0.0, 0.0);
+        for seed in 0..40 {
+            let cfg = CameraConfig { seed, ..base };
+            raw += spreads(&cfg, [0.0; 2], d) / 40.0;
+            fixed += spreads(&cfg, model, d) / 40.0;
+        }
+        assert!(raw > 1.2 * truth, "the noise inflates it at {d} m: {raw:.4} vs {truth:.4} m²");
+        assert!(
+            (fixed - truth).abs() < 0.5 * (raw - truth),
+            "at {d} m: {fixed:.4} m² with the noise taken out, {raw:.4} without, {truth:.4} noiseless"
+        );
+    }
+}
