@@ -247,7 +247,8 @@ impl Extractor {
                 let mut nn = [[0.0; 3]; 3];
                 if sig > 0.0 {
                     let a = [c[0] / z, c[1] / z, 1.0];
-                    let g: [f64; 3] = std::array::from_fn(|i| r[i][0] * a[0] + r[i][1] * a[1] + r[i][2] * a[2]);
+                    let g: [f64; 3] =
+                        std::array::from_fn(|i| r[i][0] * a[0] + r[i][1] * a[1] + r[i][2] * a[2]);
                     for i in 0..3 {
                         for j in 0..3 {
                             nn[i][j] = w * sig * sig * g[i] * g[j];

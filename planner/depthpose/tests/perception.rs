@@ -572,7 +572,8 @@ fn an_object_across_two_faces_of_a_rig_is_located_from_both_parts() {
     let rig = CameraConfig { faces: 6, fov_y_rad: std::f64::consts::FRAC_PI_2, ..exact() }.rig();
     // Across the top edge of the +x face (its 90° side), its bottom edge, and across the
     // side edges of +x and +y, which overlap (106° across): too large for either to hold.
-    let cases: [([f64; 3], f64); 3] = [([1.6, 0.2, 1.6], 0.35), ([1.5, -0.3, -1.5], 0.3), ([1.4, 1.4, 0.1], 0.6)];
+    let cases: [([f64; 3], f64); 3] =
+        [([1.6, 0.2, 1.6], 0.35), ([1.5, -0.3, -1.5], 0.3), ([1.4, 1.4, 0.1], 0.6)];
     for (centre, r) in cases {
         let ball = (7, SharedShape::ball(r), centre, [1.0, 0.0, 0.0, 0.0], r);
         let mut per = DepthPerception::default();

@@ -214,11 +214,17 @@ fn descriptors_enclose_the_exact_shapes() {
 #[test]
 fn a_hull_is_judged_by_its_vertices_not_by_its_box() {
     use dkrrt_collision::bounds::{points_excess, shape_excess};
-    let pts: Vec<PVec> =
-        [[0.3, 0.0, 0.0], [-0.2, 0.15, 0.0], [-0.1, -0.2, 0.05], [0.0, 0.0, 0.25], [0.05, 0.05, -0.2], [0.2, 0.2, 0.1]]
-            .iter()
-            .map(|p| PVec::new(p[0], p[1], p[2]))
-            .collect();
+    let pts: Vec<PVec> = [
+        [0.3, 0.0, 0.0],
+        [-0.2, 0.15, 0.0],
+        [-0.1, -0.2, 0.05],
+        [0.0, 0.0, 0.25],
+        [0.05, 0.05, -0.2],
+        [0.2, 0.2, 0.1],
+    ]
+    .iter()
+    .map(|p| PVec::new(p[0], p[1], p[2]))
+    .collect();
     let hull = SharedShape::convex_hull(&pts).unwrap();
     let desc = descriptor_of(hull.as_ref());
     let v = hull_vertices(hull.as_ref()).expect("a hull has vertices");
@@ -263,7 +269,10 @@ fn a_hull_is_judged_by_its_vertices_not_by_its_box() {
     // The box's empty corners are what the hull does not reach.
     assert!(below > 100, "{below}");
     // At its own pose, inside its own box.
-    assert_eq!(points_excess(&desc, 0.0, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0], &v, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0]), 0.0);
+    assert_eq!(
+        points_excess(&desc, 0.0, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0], &v, &[0.0; 3], &[1.0, 0.0, 0.0, 0.0]),
+        0.0
+    );
 }
 
 #[test]
