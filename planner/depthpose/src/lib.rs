@@ -81,6 +81,9 @@ pub struct Moments {
 }
 
 impl Moments {
+    /// No points.
+    pub const ZERO: Moments = Moments { w: 0.0, s: [0.0; 3], ss: [[0.0; 3]; 3], nn: [[0.0; 3]; 3] };
+
     /// Adds another set of points' moments about the same origin.
     pub fn add(&mut self, o: &Moments) {
         self.w += o.w;

@@ -32,8 +32,12 @@
 //!   a few pixels) would put its centre off, and the predictor's position bound would grow on
 //!   the jumps: it is not reported, the predictor coasts through it. A view **cut by the
 //!   image border** (a pixel on it; [`crate::PoseEstimate::cut`]) with one of its two largest
-//!   spreads under [`WHOLE`] of the largest seen is held back: when no camera of the capture
-//!   shows the object whole, it is reported with the next capture, flagged
+//!   spreads under [`WHOLE`] of the largest seen is held back, and so is every cut or hidden
+//!   view while the object has not been seen whole (nothing to measure it against; a 2 m
+//!   rod with the arm across it from its first view was reported whole, 0.2–0.4 m off its
+//!   centre, and the predictor took the jumps between its visible parts for a velocity of
+//!   0.5–1.7 m/s): when no camera of the capture shows the object whole, it is reported
+//!   with the next capture, flagged
 //!   [`DEBRIS_PARTIAL`] (located from all the capture's views of it: **Rigs** below; its axis
 //!   from the view with the most pixels), with the shape and attitude last seen whole, except
 //!   a rod's axis and a disc's normal where the visible part defines them (a cut or
@@ -171,10 +175,23 @@ struct Known {
     round: [u32; 2],
     /// The sums of those planar views' two in-plane spreads, m.
     plane_sum: [f64; 2],
-    /// The current capture's views of it added up ([`crate::PoseEstimate::own`]: each face
-    /// of a cube rig its own directions), with that capture's stamp and the optical centre
-    /// the moments are about: the view a partial report is located from.
-    fused: (Moments, u64, [f64; 3]),
+    /// The current capture's views of it added up: the view a partial report is located from.
+    fused: Fused,
+}
+
+/// One capture's views of an object added up ([`crate::PoseEstimate::own`]: each face of a
+/// cube rig its own directions).
+#[derive(Debug, Clone, Copy)]
+struct Fused {
+    moments: Moments,
+    /// The capture's stamp, ns.
+    stamp_ns: u64,
+    /// The optical centre the moments are about.
+    origin: [f64; 3],
+}
+
+impl Fused {
+    const NONE: Fused = Fused { moments: Moments::ZERO, stamp_ns: u64::MAX, origin: [0.0; 3] };
 }
 
 impl Known {
@@ -349,8 +366,8 @@ impl DepthPerception {
                 }
                 // Located from all that capture's faces showed of it, not from one face's part
                 // (whose centroid stays near the edge it is cut at as the object moves on).
-                let (m, stamp, origin) = &kn.fused;
-                if let Some(f) = m.estimate(origin).filter(|_| *stamp == o.t_meas_ns) {
+                let Fused { moments, stamp_ns, origin } = &kn.fused;
+                if let Some(f) = moments.estimate(origin).filter(|_| *stamp_ns == o.t_meas_ns) {
                     o.p = visible_centre(&f, origin, kn.class());
                 }
                 out.items[count] = o;
@@ -376,10 +393,10 @@ impl DepthPerception {
                 self.stats.repeats += 1;
                 continue;
             }
-            if kn.fused.1 != img.header.stamp_ns || kn.fused.2 != cam.position {
-                kn.fused = (Moments::default(), img.header.stamp_ns, cam.position);
+            if kn.fused.stamp_ns != img.header.stamp_ns || kn.fused.origin != cam.position {
+                kn.fused = Fused { stamp_ns: img.header.stamp_ns, origin: cam.position, ..Fused::NONE };
             }
-            kn.fused.0.add(&e.own);
+            kn.fused.moments.add(&e.own);
             // A view cut by the frame or hidden in part shows a part, and a part can spread
             // wider than the whole (a panel's two ends with the arm across its middle): the
             // spreads its views are measured against are the whole views' once it has one.
@@ -407,10 +424,11 @@ impl DepthPerception {
                 self.stats.partial += 1;
                 continue;
             }
-            if (e.cut > 0 || e.occluded > 0) && (0..2).any(|i| e.spread[i] < WHOLE * kn.spread[i]) {
+            if hidden && (!kn.whole_seen || (0..2).any(|i| e.spread[i] < WHOLE * kn.spread[i])) {
                 // Cut by the frame, or hidden in part behind something nearer (the arm, another
-                // object: its outline touches it): its centre may be off by up to its size, and
-                // its axes wrong.
+                // object: its outline touches it), and smaller than the whole views or with no
+                // whole view yet to tell: its centre may be off by up to its size, and its axes
+                // wrong.
                 // Another camera of the same capture may still show it whole; if none does, the
                 // cut view with the most pixels is reported with the next capture (module docs).
                 self.stats.partial += 1;
@@ -554,7 +572,7 @@ impl DepthPerception {
             whole_seen: false,
             round: [0; 2],
             plane_sum: [0.0; 2],
-            fused: (Moments::default(), u64::MAX, [0.0; 3]),
+            fused: Fused::NONE,
         };
         if self.known.push(fresh).is_ok() {
             return self.known.len() - 1;
