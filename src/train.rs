@@ -203,7 +203,8 @@ pub fn predict_eval(
     // #15): the cube rig of the default camera through the classical front end, and through
     // the front end whose attitudes the learned visual features f_θ read (when the shipped
     // visual model is there).
-    let rig = crate::depth_view::cube_rig(&dkrrt_config::Scenario::default_scenario().camera);
+    let camera = dkrrt_config::Scenario::default_scenario().camera;
+    let rig = crate::depth_view::cube_rig(&camera);
     let classical = || dkrrt_depthpose::perception::DepthPerception::default();
     let rec = |sc: &dkrrt_debris::Scene, seed: u64, dur: f64, dt: f64| {
         crate::depth_view::record_depth(sc, seed, dur, dt, &rig, &classical)
@@ -222,7 +223,7 @@ pub fn predict_eval(
         }
     });
     let mut depth_pred = cfg.predictor;
-    dkrrt_planner::predict::for_depth(&mut depth_pred);
+    dkrrt_planner::predict::for_depth(&mut depth_pred, &camera);
     let mut views: Vec<View> = Vec::new();
     for &method in cfg.methods.iter().filter(|m| **m == Method::DeepKoopmanOnline) {
         views.push(View { name: "depth", method, predictor: depth_pred, record: &rec });

@@ -130,7 +130,7 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
     cfg.filter.vel_sigma = sc.debris.vel_sigma_mps.max(1e-5);
     cfg.filter.rate_sigma = sc.debris.rate_sigma_radps.max(1e-5);
     if sc.depth_input() {
-        for_depth(&mut cfg);
+        for_depth(&mut cfg, &sc.camera);
     }
     cfg
 }
@@ -144,8 +144,10 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
 /// sides, so: Huber updates beyond 3 deviations, an impulse only on two failing model pairs
 /// in a row, the published bound at least 3 of the filter's own deviations (a young track's
 /// velocity), and a track dropped while its object was hidden taken up again within 5 s.
-/// Each is off for the pose sensor.
-pub fn for_depth(cfg: &mut PredictorConfig) {
+/// Far views are noisier: a pixel spans more, and a far object shows few of them, so the
+/// noise is also at least [`DEPTH_POS_SIGMA_PIXELS`] of a pixel's span at the object's range
+/// from `camera`'s optical centre. Each is off for the pose sensor.
+pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig) {
     cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
     cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
     cfg.filter.outlier_sigmas = DEPTH_OUTLIER_SIGMAS;
@@ -154,7 +156,14 @@ pub fn for_depth(cfg: &mut PredictorConfig) {
     cfg.track_sigmas = 3.0;
     cfg.revive_s = 5.0;
     cfg.front_end_margin_m = dkrrt_depthpose::perception::ERROR_MARGIN_M;
+    cfg.pos_sigma_per_range = DEPTH_POS_SIGMA_PIXELS * camera.fov_y_rad / camera.height.max(1) as f64;
+    cfg.sensor_origin = camera.position_m;
 }
+
+/// The position noise of a pose from depth frames is at least this many pixels' span at its
+/// range ([`for_depth`]): 0.6 · 16.4 mrad ≈ 1 cm per metre for the default camera, the 5 cm of
+/// [`DEPTH_POS_SIGMA_M`] at 5 m.
+pub const DEPTH_POS_SIGMA_PIXELS: f64 = 0.6;
 
 /// [`dkrrt_predictor::predictor::PredictorConfig::pos_sigma_per_m`] for poses from depth frames.
 pub const DEPTH_POS_SIGMA_PER_M: f64 = 0.08;

@@ -56,6 +56,13 @@ pub struct PredictorConfig {
     /// 0 for the pose sensor; poses from depth frames: the visible side moves the centroid by
     /// a share of the object's size.
     pub pos_sigma_per_m: f64,
+    /// Position noise of a pose per metre of its distance from [`PredictorConfig::sensor_origin`]
+    /// (a camera's pixel spans more the farther it looks): the filter takes at least this
+    /// times the range. 0 for the pose sensor; poses from depth frames: a share of a pixel's
+    /// angle.
+    pub pos_sigma_per_range: f64,
+    /// Where the sensor looks from (the camera's optical centre), base frame, m.
+    pub sensor_origin: [f64; 3],
     /// The published position bound is at least this many of the track filter's own position
     /// deviations at each horizon ([`TrackFilter::pos_std`]: a young track's velocity is
     /// still uncertain, which the model's bound does not know). 0: off (the pose sensor,
@@ -132,6 +139,8 @@ impl Default for PredictorConfig {
             event_refractory: 0.5,
             event_persist: 1,
             pos_sigma_per_m: 0.0,
+            pos_sigma_per_range: 0.0,
+            sensor_origin: [0.0; 3],
             track_sigmas: 0.0,
             revive_s: 0.0,
             front_end_margin_m: 0.0,
@@ -710,7 +719,9 @@ impl DebrisPredictor {
             tr.pos_bound.clone_from(&self.models.pos_bound);
             self.stats.restarts += 1;
         }
-        let mut sigma = cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size);
+        let range = (0..3).map(|i| (o.p[i] - cfg.sensor_origin[i]).powi(2)).sum::<f64>().sqrt();
+        let mut sigma =
+            cfg.filter.pos_sigma.max(cfg.pos_sigma_per_m * tr.size).max(cfg.pos_sigma_per_range * range);
         if o.partial {
             sigma = sigma.max(cfg.partial_sigma_per_m * tr.size);
             self.stats.partial += 1;
