@@ -164,8 +164,8 @@ pub const MIN_POINTS: usize = 3;
 #[derive(Debug, Clone)]
 pub struct Extractor {
     sums: Box<[Sums; 256]>,
-    /// The instances the last frame summed, in the order first seen (only their sums are
-    /// cleared for the next frame).
+    /// The instances the last frame summed, `n_touched` of them (only their sums are cleared
+    /// for the next frame).
     touched: [u8; 256],
     n_touched: usize,
     /// Instances with fewer valid pixels are not estimated.
