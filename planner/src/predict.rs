@@ -152,6 +152,7 @@ pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig)
     cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
     cfg.filter.outlier_sigmas = DEPTH_OUTLIER_SIGMAS;
     cfg.event_persist = 2;
+    cfg.event_max_dv = DEPTH_EVENT_MAX_DV;
     cfg.pos_sigma_per_m = DEPTH_POS_SIGMA_PER_M;
     cfg.track_sigmas = 3.0;
     cfg.revive_s = 5.0;
@@ -164,6 +165,10 @@ pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig)
 /// range ([`for_depth`]): 0.6 · 16.4 mrad ≈ 1 cm per metre for the default camera, the 5 cm of
 /// [`DEPTH_POS_SIGMA_M`] at 5 m.
 pub const DEPTH_POS_SIGMA_PIXELS: f64 = 0.6;
+
+/// [`dkrrt_predictor::predictor::PredictorConfig::event_max_dv`] for poses from depth frames:
+/// a position event widens the bound's growth by at most this, m/s.
+pub const DEPTH_EVENT_MAX_DV: f64 = 0.3;
 
 /// [`dkrrt_predictor::predictor::PredictorConfig::pos_sigma_per_m`] for poses from depth frames.
 pub const DEPTH_POS_SIGMA_PER_M: f64 = 0.08;

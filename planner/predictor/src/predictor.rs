@@ -49,6 +49,13 @@ pub struct PredictorConfig {
     pub event_factor: f64,
     /// Event: position noise allowance of the one-step residual (raw observation) [m].
     pub event_pos_noise: f64,
+    /// Event: the largest change of velocity a position event is taken for [m/s]. An event
+    /// widens the position bound by its one-step residual `r` (beyond the noise allowance)
+    /// and its rate of growth by `r / dt`, the velocity change that would explain `r` over
+    /// one model step, at most this. Infinite for the pose sensor; poses from depth frames
+    /// jump by tenths of a metre with what a view shows, which `r / dt` took for changes
+    /// of velocity of 1–1.5 m/s.
+    pub event_max_dv: f64,
     /// Event: attitude noise allowance [rad].
     pub event_att_noise: f64,
     /// Position noise of a pose per metre of the object's size (its shape's bounding radius,
@@ -135,6 +142,7 @@ impl Default for PredictorConfig {
             attitude_physics: None,
             event_factor: 3.0,
             event_pos_noise: 0.05,
+            event_max_dv: f64::INFINITY,
             event_att_noise: 0.08,
             event_refractory: 0.5,
             event_persist: 1,
@@ -825,7 +833,7 @@ impl DebrisPredictor {
             let (ev_p, ev_a) = (fire(0), fire(1));
             if ev_p {
                 let rp = rp - extra;
-                tr.pos_bound.grow(rp, rp / dt);
+                tr.pos_bound.grow(rp, (rp / dt).min(cfg.event_max_dv));
                 tr.rls_t.reset_covariance();
                 tr.last_event_t[0] = o.t;
             }
