@@ -279,10 +279,9 @@ fn after_an_impulse_the_calibration_starts_again_and_still_covers_the_truth() {
 /// for 1.5 m/s. An object at rest whose poses move by `JUMP` at 3 s (and stay there): the
 /// change is still detected and the bound still holds the object, but 4 s ahead it is a
 /// fifth of the uncapped one (3.1 against 14.7 m).
-const JUMP: f64 = 0.5;
-
 #[test]
 fn a_position_events_growth_is_at_most_a_plausible_change_of_velocity() {
+    const JUMP: f64 = 0.5;
     let run = |max_dv: f64| {
         let mut cfg = noisy();
         cfg.filter.outlier_sigmas = 3.0;
