@@ -673,6 +673,9 @@ fn main() -> ExitCode {
                 sol.path_length_rad,
                 sol.min_clearance_m.map_or("-".into(), |m| format!("{m:.3} m")),
             );
+            if let Some(why) = &sol.why {
+                eprintln!("dkrrt plan: not solved: {why}");
+            }
             if json.is_none() {
                 println!("{text}");
             }

@@ -193,6 +193,9 @@ pub struct Solution {
     pub path_length_rad: f64,
     /// Smallest clearance along the trajectory (every 1 ms, beyond the margin), m.
     pub min_clearance_m: Option<f64>,
+    /// Why it is not solved, when a reason is known (printed, not in the JSON output).
+    #[serde(skip)]
+    pub why: Option<String>,
 }
 
 /// Solves `p` for the arm `model` within `p.time_limit_s` (wall clock), anytime: the first
@@ -220,41 +223,81 @@ pub fn solve(
     let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
     let cfg = PlannerConfig {
         seed: p.seed,
-        // The obstacles' motion is known for all time: check every plan to its end.
+        // The obstacles' motion is known for all time (held after the last pose): check every
+        // motion to its end, and rests to 5 s past the last pose.
         lookahead_s: (horizon + 5.0).max(60.0),
+        check_whole_motions: true,
         improve_iters: u32::MAX,
         max_configs: u64::MAX,
         max_nodes: 4000,
         ..PlannerConfig::default()
     };
     let mut planner = Planner::new(model, limits, cfg);
+    // Where the start and the goal stand (a reason to give when unsolved).
+    let cap = planner.checker.cap;
+    planner.checker.cap = 100.0;
+    let start_clear = planner.checker.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
+    let goal_clear = planner.checker.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
+    planner.checker.cap = cap;
     let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut best = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut waypoints: Vec<([f64; NJ], f64)> = Vec::new();
     let t_start = std::time::Instant::now();
     let limit = p.time_limit_s;
     let req = Request { start: KinState::rest(p.start), t0: 0.0, goal: p.goal };
-    let plan = planner.plan(&req, &world, u32::MAX, || t_start.elapsed().as_secs_f64() < limit, 1, &mut out);
+    // Rounds until the time limit: a round ends when its tree is full, and the next grows a
+    // new tree (the random stream goes on) that keeps only arrivals earlier than the best.
+    let (mut arrival, mut first_solution_s, mut iterations, mut rounds) = (f64::MAX, None, 0u32, 0u32);
+    loop {
+        let round_s = t_start.elapsed().as_secs_f64();
+        let keep_going = || t_start.elapsed().as_secs_f64() < limit;
+        let plan = planner.plan_to_beat(&req, &world, arrival, u32::MAX, keep_going, 1, &mut out);
+        iterations = iterations.saturating_add(planner.stats.iterations);
+        rounds += 1;
+        if let Some(pl) = plan.filter(|x| x.reach == Reach::Goal && x.arrival < arrival) {
+            arrival = pl.arrival;
+            first_solution_s = first_solution_s.or(planner.first_solution_s.map(|f| round_s + f));
+            *best = *out;
+            waypoints.clear();
+            waypoints.extend(planner.waypoints());
+        }
+        if t_start.elapsed().as_secs_f64() >= limit {
+            break;
+        }
+    }
+    let out = best;
     let plan_time_s = t_start.elapsed().as_secs_f64();
-    let stats = planner.stats;
-    let solved = plan.is_some_and(|x| x.reach == Reach::Goal);
+    let solved = first_solution_s.is_some();
     let mut sol = Solution {
         solved,
         first_solution_s: None,
         plan_time_s,
-        iterations: stats.iterations,
+        iterations,
         path: Vec::new(),
         times_s: Vec::new(),
         trajectory: Vec::new(),
         duration_s: 0.0,
         path_length_rad: 0.0,
         min_clearance_m: None,
+        why: None,
+    };
+    let in_collision = if start_clear < 0.0 {
+        Some(format!("the start is in collision at t = 0 (clearance {start_clear:.3} m)"))
+    } else if goal_clear < 0.0 {
+        Some(format!("the goal is in collision from t = {horizon:.2} s on (clearance {goal_clear:.3} m)"))
+    } else {
+        None
     };
     if !solved {
+        sol.why = in_collision.or(Some(format!(
+            "no collision-free motion to the goal found in {plan_time_s:.3} s ({rounds} search trees)"
+        )));
         return Ok(sol);
     }
-    sol.first_solution_s = planner.first_solution_s;
+    sol.first_solution_s = first_solution_s;
     sol.path.push(p.start);
     sol.times_s.push(0.0);
-    for (q, t) in planner.waypoints() {
+    for &(q, t) in &waypoints {
         sol.path.push(q);
         sol.times_s.push(t);
     }
@@ -284,5 +327,8 @@ pub fn solve(
     }
     sol.min_clearance_m = Some(m);
     sol.solved = ok && m >= 0.0;
+    if !sol.solved {
+        sol.why = in_collision.or(Some(format!("the plan's check every 1 ms failed (clearance {m:.3} m)")));
+    }
     Ok(sol)
 }

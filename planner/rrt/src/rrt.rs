@@ -49,6 +49,11 @@ pub struct PlannerConfig {
     pub delta_m: f64,
     /// Checks cover [t0, t0 + lookahead_s]; beyond, the replanning loop re-checks later.
     pub lookahead_s: f64,
+    /// Check every motion to its end, even past the look-ahead (a planning-problem file,
+    /// whose obstacles' motion is known for all time and held after its last pose: a rest that
+    /// begins past the look-ahead is then clear if its first instant is, as the motion's end).
+    /// The replanning loop leaves it off: its forecasts end, and it re-checks every cycle.
+    pub check_whole_motions: bool,
     /// Iterations after the first solution.
     pub improve_iters: u32,
     /// A start inside the inflated obstacles ([`crate::check`]): motions from it may go this
@@ -74,6 +79,7 @@ impl Default for PlannerConfig {
             sample_box_rad: 0.8,
             delta_m: 0.03,
             lookahead_s: 5.0,
+            check_whole_motions: false,
             improve_iters: 40,
             max_configs: 4000,
             relief_m: 0.02,
@@ -297,6 +303,7 @@ impl Planner {
         let ts = n.t + w;
         let d = tr.duration();
         let v_arm = self.checker.motion_speed(&tr.speed_peaks());
+        let t_end = if self.cfg.check_whole_motions { t_end.max(ts + d) } else { t_end };
         let c = self.checker.check_motion(world, ts, ts + d, t_end, Some(v_arm), |t| tr.at(t - ts).p);
         if !c.ok {
             if self.debug && from == ROOT {
@@ -484,7 +491,7 @@ impl Planner {
         let mut it = 0u32;
         while it < budget && keep_going() && self.checker.configs_checked - c0 < self.cfg.max_configs {
             if let Some(f) = first {
-                if it >= f + self.cfg.improve_iters {
+                if it >= f.saturating_add(self.cfg.improve_iters) {
                     break;
                 }
             } else if self.before.is_finite() && it >= self.cfg.improve_iters {
