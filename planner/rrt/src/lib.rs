@@ -15,6 +15,7 @@
 
 pub mod build;
 pub mod check;
+pub mod connect;
 pub mod goal;
 pub mod problem;
 pub mod replan;

@@ -3,9 +3,12 @@
 
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::{DebrisShape, Trajectory, Zeroed};
-use dkrrt_otg::{KinState, Limits};
+use dkrrt_otg::{KinState, Limits, Options, Sync};
 use serde::{Deserialize, Serialize};
 
+use crate::build::Builder;
+use crate::check::Checker;
+use crate::connect::Connect;
 use crate::replan::check_message;
 use crate::rrt::{Planner, PlannerConfig, Reach, Request};
 use crate::world::{After, TimedPose, WorldInTime};
@@ -198,6 +201,11 @@ pub struct Solution {
     pub why: Option<String>,
 }
 
+/// The finer δ of the final check, m, when the planner's δ rejects a plan (see [`solve`]).
+pub const FINE_DELTA_M: f64 = 0.006;
+/// The finest δ a problem's start or goal near an obstacle gets, m (see [`solve`]).
+pub const MIN_DELTA_M: f64 = 0.002;
+
 /// Solves `p` for the arm `model` within `p.time_limit_s` (wall clock), anytime: the first
 /// solution, then improvements until the time limit. `a_max`/`j_max`: the motion limits.
 pub fn solve(
@@ -207,7 +215,7 @@ pub fn solve(
     a_max: [f64; NJ],
     j_max: [f64; NJ],
 ) -> Result<Solution, ProblemError> {
-    let l = model.limits();
+    let l = *model.limits();
     for (name, q) in [("start", &p.start), ("goal", &p.goal)] {
         for i in 0..NJ {
             if !(l.q_min[i]..=l.q_max[i]).contains(&q[i]) {
@@ -221,8 +229,22 @@ pub fn solve(
     let world = p.world()?;
     let horizon = p.obstacles.iter().flat_map(|o| o.poses.last()).map(|x| x.t).fold(0.0, f64::max);
     let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
+    // Where the start and the goal stand (a reason to give when unsolved).
+    let mut probe = Checker::new(model.clone(), &limits.v_max, PlannerConfig::default().delta_m);
+    probe.cap = 100.0;
+    let start_clear = probe.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
+    let goal_clear = probe.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
+    // Every sample of a check needs δ/2 of clearance, the arm at rest at the start and at the
+    // goal included: a start or a goal nearer than that gets a finer δ (denser samples).
+    let near = start_clear.min(goal_clear);
+    let delta_m = if near >= 0.0 {
+        (1.8 * near).clamp(MIN_DELTA_M, PlannerConfig::default().delta_m)
+    } else {
+        PlannerConfig::default().delta_m
+    };
     let cfg = PlannerConfig {
         seed: p.seed,
+        delta_m,
         // The obstacles' motion is known for all time (held after the last pose): check every
         // motion to its end, and rests to 5 s past the last pose.
         lookahead_s: (horizon + 5.0).max(60.0),
@@ -232,22 +254,36 @@ pub fn solve(
         max_nodes: 4000,
         ..PlannerConfig::default()
     };
-    let mut planner = Planner::new(model, limits, cfg);
-    // Where the start and the goal stand (a reason to give when unsolved).
-    let cap = planner.checker.cap;
-    planner.checker.cap = 100.0;
-    let start_clear = planner.checker.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
-    let goal_clear = planner.checker.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
-    planner.checker.cap = cap;
+    let mut planner = Planner::new(model.clone(), limits, cfg);
     let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut best = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut waypoints: Vec<([f64; NJ], f64)> = Vec::new();
     let t_start = std::time::Instant::now();
     let limit = p.time_limit_s;
     let req = Request { start: KinState::rest(p.start), t0: 0.0, goal: p.goal };
+    let (mut arrival, mut first_solution_s, mut iterations, mut rounds) = (f64::MAX, None, 0u32, 0u32);
+    // Nothing moves: RRT-Connect in joint space first (`crate::connect`), its path shortcut
+    // and timed by rest-to-rest motions.
+    let still = p.obstacles.iter().all(|o| o.poses.windows(2).all(|w| w[0].p == w[1].p && w[0].q == w[1].q));
+    // Its segment checks need δ/2 of clearance at every sample, so the start and the goal too.
+    let half = 0.5 * planner.cfg.delta_m;
+    if still && start_clear >= half && goal_clear >= half {
+        let keep_going = || t_start.elapsed().as_secs_f64() < limit;
+        let mut c = Connect::new(l.q_min.into(), l.q_max.into(), limits.v_max, 20_000, p.seed);
+        let mut path = Vec::new();
+        if c.solve(&mut planner.checker, &world, &p.start, &p.goal, keep_going, &mut path) {
+            let found_s = t_start.elapsed().as_secs_f64();
+            c.shortcut(&mut planner.checker, &world, &mut path, 200, keep_going);
+            if let Some(times) = write_path(&path, &limits, &mut best) {
+                first_solution_s = Some(found_s);
+                arrival = best.duration_s;
+                waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
+            }
+        }
+        iterations = iterations.saturating_add(c.iterations.min(u32::MAX as u64) as u32);
+    }
     // Rounds until the time limit: a round ends when its tree is full, and the next grows a
     // new tree (the random stream goes on) that keeps only arrivals earlier than the best.
-    let (mut arrival, mut first_solution_s, mut iterations, mut rounds) = (f64::MAX, None, 0u32, 0u32);
     loop {
         let round_s = t_start.elapsed().as_secs_f64();
         let keep_going = || t_start.elapsed().as_secs_f64() < limit;
@@ -316,7 +352,15 @@ pub fn solve(
         sol.trajectory.push(row);
     }
     let end = out.duration_s + 1.0;
-    let (ok, _) = check_message(&mut planner, &world, &out, 0.0, end);
+    let (mut ok, _) = check_message(&mut planner, &world, &out, 0.0, end);
+    if !ok && planner.cfg.delta_m > FINE_DELTA_M {
+        // The sampled check needs δ/2 of clearance at each sample, so a plan that passes
+        // nearer than that can fail it where a sample falls: checked again with a finer δ.
+        let coarse =
+            std::mem::replace(&mut planner.checker, Checker::new(model.clone(), &limits.v_max, FINE_DELTA_M));
+        ok = check_message(&mut planner, &world, &out, 0.0, end).0;
+        planner.checker = coarse;
+    }
     let mut m = f64::INFINITY;
     planner.checker.cap = 100.0;
     let mut t = 0.0;
@@ -331,4 +375,23 @@ pub fn solve(
         sol.why = in_collision.or(Some(format!("the plan's check every 1 ms failed (clearance {m:.3} m)")));
     }
     Ok(sol)
+}
+
+/// Writes the path (rest-to-rest, phase-synchronized motions between its waypoints) into `out`;
+/// the arrival times at its inner waypoints. `None`: a motion could not be timed, or the
+/// message has too few segments for the path.
+fn write_path(path: &[[f64; NJ]], limits: &Limits<NJ>, out: &mut Trajectory) -> Option<Vec<f64>> {
+    let opts = Options { sync: Sync::Phase, ..Options::default() };
+    let mut b = Builder::new(out, 1, 0);
+    let mut times = Vec::new();
+    for w in path.windows(2) {
+        let tr =
+            dkrrt_otg::Trajectory::calculate(&KinState::rest(w[0]), &KinState::rest(w[1]), limits, &opts)
+                .ok()?;
+        b.otg(&tr).ok()?;
+        times.push(b.duration());
+    }
+    times.pop();
+    b.finish();
+    Some(times)
 }

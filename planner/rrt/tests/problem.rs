@@ -23,15 +23,18 @@ fn straight(lim: &Limits<NJ>, goal: &[f64; NJ]) -> dkrrt_otg::Trajectory<NJ> {
         .unwrap()
 }
 
+/// The centre of link 4 on the straight motion to `goal` at `frac` of its duration.
+fn link4_on_straight(lim: &Limits<NJ>, goal: &[f64; NJ], frac: f64) -> [f64; 3] {
+    let tr = straight(lim, goal);
+    link4_at(&tr.at(frac * tr.duration()).p)
+}
+
 /// A static sphere of radius `r` on link 4 of the straight motion to `goal` at `frac` of its
 /// duration.
 fn sphere_on_straight(lim: &Limits<NJ>, goal: &[f64; NJ], frac: f64, r: f64) -> WorldInTime {
-    let tr = straight(lim, goal);
-    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
-    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
-    poser.pose(&tr.at(frac * tr.duration()).p, &mut caps);
     let mut w = WorldInTime::new(0.0);
-    let pose = TimedPose { t: 0.0, p: caps[4].centre, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 };
+    let p = link4_on_straight(lim, goal, frac);
+    let pose = TimedPose { t: 0.0, p, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 };
     w.push_track(1, dkrrt_msg::DebrisShape::sphere(r), &[pose], After::Hold).unwrap();
     w
 }
@@ -158,4 +161,185 @@ fn an_unsolved_problem_says_why_and_uses_its_whole_time() {
     let far = problem(START, GOAL, [30.0, 0.0, 0.0], 0.2);
     let sol = solve_default(&far);
     assert!(sol.solved && sol.why.is_none(), "{:?}", sol.why);
+}
+
+/// A static world of `n` random obstacles around the arm (seeded).
+fn clutter(seed: u64, n: u32) -> Problem {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(seed);
+    let mut p = problem(START, GOAL, [30.0, 0.0, 0.0], 0.1);
+    p.obstacles.clear();
+    for _ in 0..n {
+        let at = loop {
+            let x: [f64; 3] = std::array::from_fn(|_| rng.random_range(-2.8..2.8));
+            let d = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if (0.8..2.9).contains(&d) {
+                break x;
+            }
+        };
+        let shape = match rng.random_range(0..3) {
+            0 => ProblemShape::Sphere { radius: rng.random_range(0.1..0.3) },
+            1 => ProblemShape::Box { half_extents: std::array::from_fn(|_| rng.random_range(0.05..0.3)) },
+            _ => ProblemShape::Capsule {
+                half_length: rng.random_range(0.1..0.5),
+                radius: rng.random_range(0.03..0.15),
+            },
+        };
+        let q: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        p.obstacles
+            .push(ProblemObstacle { shape, poses: vec![ProblemPose { t: 0.0, p: at, q: q.map(|v| v / n) }] });
+    }
+    p
+}
+
+fn default_limits() -> Limits<NJ> {
+    Limits {
+        v_max: [0.1, 0.1, 0.1, 0.18, 0.18, 0.18],
+        a_max: [0.2, 0.2, 0.2, 0.4, 0.4, 0.4],
+        j_max: [1.0, 1.0, 1.0, 2.0, 2.0, 2.0],
+    }
+}
+
+/// The smallest clearance along the straight segment a → b, at 2000 points.
+fn segment_min(ch: &mut Checker, w: &WorldInTime, a: &[f64; NJ], b: &[f64; NJ]) -> f64 {
+    (0..=2000)
+        .map(|i| {
+            let s = i as f64 / 2000.0;
+            let q: [f64; NJ] = std::array::from_fn(|j| a[j] + s * (b[j] - a[j]));
+            ch.clearance_at(w, &q, 0.0, 0.0, f64::NEG_INFINITY)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn a_segment_found_clear_is_clear_everywhere_along_it() {
+    // Long and short random segments through clutter: the sampled check's verdict "clear" must
+    // hold at every point (the check runs at the joint speed limits, whatever the span).
+    use rand::{Rng, SeedableRng};
+    let lim = default_limits();
+    let l = *ArmModel::default_arm().limits();
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(3);
+    let (mut clear, mut blocked) = (0, 0);
+    for k in 0..12 {
+        let w = clutter(100 + k, 24).world().unwrap();
+        let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+        let mut dense = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+        dense.cap = 10.0;
+        let mut c = dkrrt_rrt::connect::Connect::new(l.q_min.into(), l.q_max.into(), lim.v_max, 10, 1);
+        for _ in 0..25 {
+            let a: [f64; NJ] = std::array::from_fn(|j| rng.random_range(0.8 * l.q_min[j]..0.8 * l.q_max[j]));
+            let span = [0.05, 0.5, 3.0][rng.random_range(0..3)];
+            let b: [f64; NJ] =
+                std::array::from_fn(|j| (a[j] + rng.random_range(-span..span)).clamp(l.q_min[j], l.q_max[j]));
+            if c.segment_clear(&mut ch, &w, &a, &b) {
+                clear += 1;
+                let m = segment_min(&mut dense, &w, &a, &b);
+                assert!(m >= 0.0, "world {k}: a segment found clear has clearance {m} m");
+            } else {
+                blocked += 1;
+            }
+        }
+    }
+    assert!(clear > 50 && blocked > 50, "both verdicts exercised: {clear} clear, {blocked} blocked");
+}
+
+#[test]
+fn rrt_connect_finds_clear_paths_through_clutter() {
+    use rand::{Rng, SeedableRng};
+    let lim = default_limits();
+    let l = *ArmModel::default_arm().limits();
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(9);
+    for k in 0..8 {
+        let p = clutter(200 + k, 24);
+        let w = p.world().unwrap();
+        let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+        let mut dense = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+        dense.cap = 10.0;
+        // A start and a goal at rest clear of the clutter, far apart.
+        let mut rest = |dense: &mut Checker| loop {
+            let q: [f64; NJ] = std::array::from_fn(|j| rng.random_range(0.8 * l.q_min[j]..0.8 * l.q_max[j]));
+            if dense.clearance_at(&w, &q, 0.0, 0.0, f64::NEG_INFINITY) > 0.05 {
+                break q;
+            }
+        };
+        let start = rest(&mut dense);
+        let mut c = dkrrt_rrt::connect::Connect::new(l.q_min.into(), l.q_max.into(), lim.v_max, 5000, k);
+        // ... with the straight motion between them blocked.
+        let goal = loop {
+            let g = rest(&mut dense);
+            let far = (0..NJ).map(|j| (g[j] - start[j]).abs()).fold(0.0, f64::max) > 1.0;
+            if far && !c.segment_clear(&mut ch, &w, &start, &g) {
+                break g;
+            }
+        };
+        let mut path = Vec::new();
+        // Iteration budgets, not a clock: the same on any machine.
+        let mut n = 0;
+        let found = c.solve(
+            &mut ch,
+            &w,
+            &start,
+            &goal,
+            || {
+                n += 1;
+                n <= 3000
+            },
+            &mut path,
+        );
+        assert!(found, "world {k}: no path in 3000 iterations");
+        let mut m = 0;
+        c.shortcut(&mut ch, &w, &mut path, 200, || {
+            m += 1;
+            m <= 200
+        });
+        assert_eq!((path[0], *path.last().unwrap()), (start, goal));
+        assert!(path.len() > 2, "world {k}: the straight motion is blocked");
+        for s in path.windows(2) {
+            let m = segment_min(&mut dense, &w, &s[0], &s[1]);
+            assert!(m >= 0.0, "world {k}: a path segment has clearance {m} m");
+        }
+    }
+}
+
+#[test]
+fn a_still_problem_blocked_straight_is_solved_clear_and_its_output_agrees() {
+    // A sphere on the straight motion: the plan goes around it, clear at every millisecond, and
+    // its waypoints are where the sampled trajectory is at their times.
+    let lim = default_limits();
+    let mut p = problem(START, TURNED, link4_on_straight(&lim, &TURNED, 0.5), 0.15);
+    p.time_limit_s = 1.0;
+    let sol = solve_default(&p);
+    assert!(sol.solved, "{:?}", sol.why);
+    assert!(sol.min_clearance_m.unwrap() >= 0.0);
+    assert!(sol.path.len() > 2, "a detour");
+    assert!(sol.first_solution_s.unwrap() <= sol.plan_time_s);
+    assert!(sol.times_s.windows(2).all(|t| t[1] > t[0]));
+    for (q, &t) in sol.path.iter().zip(&sol.times_s) {
+        let row = sol.trajectory.iter().min_by(|a, b| (a[0] - t).abs().total_cmp(&(b[0] - t).abs())).unwrap();
+        assert!((row[0] - t).abs() <= 0.005 + 1e-9);
+        let err = (0..NJ).map(|j| (row[j + 1] - q[j]).abs()).fold(0.0, f64::max);
+        assert!(err < 1e-3, "waypoint at {t} s off the trajectory by {err} rad");
+    }
+}
+
+#[test]
+fn a_goal_nearer_an_obstacle_than_half_the_sampling_delta_is_reached() {
+    // A sphere 8 mm from link 4 of the arm at rest at the goal: a check's samples need δ/2 of
+    // clearance (1.5 cm with the planner's 3 cm), so the problem gets a finer δ.
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    dkrrt_collision::ArmPoser::new(ArmModel::default_arm()).pose(&GOAL, &mut caps);
+    let k = caps[4];
+    let axis: [f64; 3] = std::array::from_fn(|i| k.b[i] - k.a[i]);
+    let side = [axis[1] * 0.3 - axis[2] * 0.9, axis[2] * 0.1 - axis[0] * 0.3, axis[0] * 0.9 - axis[1] * 0.1];
+    let n = side.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let at: [f64; 3] = std::array::from_fn(|i| k.centre[i] + side[i] / n * (k.r + 0.1 + 0.008));
+    let p = problem(START, GOAL, at, 0.1);
+    let mut ch = Checker::new(ArmModel::default_arm(), &default_limits().v_max, 0.03);
+    ch.cap = 10.0;
+    let c = ch.clearance_at(&p.world().unwrap(), &GOAL, 0.0, 0.0, f64::NEG_INFINITY);
+    assert!((c - 0.008).abs() < 1e-6, "the goal's clearance {c}");
+    let sol = solve_default(&p);
+    assert!(sol.solved, "{:?}", sol.why);
+    assert!(sol.min_clearance_m.unwrap() >= 0.0);
 }
