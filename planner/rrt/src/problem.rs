@@ -267,7 +267,8 @@ pub fn solve(
     let still = p.obstacles.iter().all(|o| o.poses.windows(2).all(|w| w[0].p == w[1].p && w[0].q == w[1].q));
     // Its segment checks need δ/2 of clearance at every sample, so the start and the goal too.
     let half = 0.5 * planner.cfg.delta_m;
-    if still && start_clear >= half && goal_clear >= half {
+    let connect = still && start_clear >= half && goal_clear >= half;
+    if connect {
         let keep_going = || t_start.elapsed().as_secs_f64() < limit;
         let mut c = Connect::new(l.q_min.into(), l.q_max.into(), limits.v_max, 20_000, p.seed);
         let mut path = Vec::new();
@@ -326,7 +327,8 @@ pub fn solve(
     };
     if !solved {
         sol.why = in_collision.or(Some(format!(
-            "no collision-free motion to the goal found in {plan_time_s:.3} s ({rounds} search trees)"
+            "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees)",
+            if connect { "RRT-Connect, then " } else { "" }
         )));
         return Ok(sol);
     }
