@@ -274,11 +274,18 @@ pub fn solve(
         let mut path = Vec::new();
         if c.solve(&mut planner.checker, &world, &p.start, &p.goal, keep_going, &mut path) {
             let found_s = t_start.elapsed().as_secs_f64();
-            c.shortcut(&mut planner.checker, &world, &mut path, 200, keep_going);
-            if let Some(times) = write_path(&path, &limits, &mut best) {
-                first_solution_s = Some(found_s);
-                arrival = best.duration_s;
-                waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
+            // Shortcut; more while the path has more waypoints than a message carries motions.
+            for _ in 0..10 {
+                c.shortcut(&mut planner.checker, &world, &mut path, 200, keep_going);
+                if let Some(times) = write_path(&path, &limits, &mut best) {
+                    first_solution_s = Some(found_s);
+                    arrival = best.duration_s;
+                    waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
+                    break;
+                }
+                if !keep_going() {
+                    break;
+                }
             }
         }
         iterations = iterations.saturating_add(c.iterations.min(u32::MAX as u64) as u32);
