@@ -5,8 +5,10 @@
 //!
 //! Mesh paths: `package://NAME/rest` is looked up in each directory of the search path (a
 //! directory holding package folders, or the package folder itself), then in the
-//! `ROS_PACKAGE_PATH` directories; `file:///abs` and absolute paths are used as they are; a
-//! relative path is taken from the URDF's folder.
+//! `ROS_PACKAGE_PATH` directories, then in the URDF's folder and each folder above it (a
+//! package `NAME` that holds the URDF, as `NAME/urdf/arm.urdf`, or a folder holding it beside
+//! the URDF's own package); `file:///abs` and absolute paths are used as they are; a relative
+//! path is taken from the URDF's folder.
 
 use std::io::{BufReader, Cursor};
 use std::path::{Path, PathBuf};
@@ -26,7 +28,13 @@ pub fn resolve(filename: &str, urdf_dir: Option<&Path>, package_path: &[PathBuf]
             .map(|v| std::env::split_paths(&v).collect())
             .unwrap_or_default();
         let mut tried = Vec::new();
-        for dir in package_path.iter().chain(ros.iter()) {
+        // Last, the URDF's own folders: a package that holds the URDF, or holds it beside it
+        // (a workspace of packages), as a package folder is laid out.
+        let own: Vec<PathBuf> = urdf_dir
+            .map(|d| std::path::absolute(d).unwrap_or_else(|_| d.to_path_buf()))
+            .map(|d| d.ancestors().map(Path::to_path_buf).collect())
+            .unwrap_or_default();
+        for dir in package_path.iter().chain(ros.iter()).chain(own.iter()) {
             // A directory holding package folders, or the package folder itself.
             let mut candidates = vec![dir.join(pkg).join(rel)];
             if dir.file_name().is_some_and(|n| n == pkg) {
@@ -39,9 +47,10 @@ pub fn resolve(filename: &str, urdf_dir: Option<&Path>, package_path: &[PathBuf]
                 tried.push(c.display().to_string());
             }
         }
-        return Err(if tried.is_empty() {
+        return Err(if package_path.is_empty() && ros.is_empty() {
             format!(
-                "`{filename}`: package `{pkg}` not found (no search path: set robot.package_path or ROS_PACKAGE_PATH)"
+                "`{filename}`: package `{pkg}` not found in the URDF's folders (no search path: set \
+                 robot.package_path or ROS_PACKAGE_PATH)"
             )
         } else {
             format!("`{filename}`: package `{pkg}` not found; tried {}", tried.join(", "))

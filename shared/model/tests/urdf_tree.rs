@@ -129,8 +129,18 @@ fn a_ur_like_tree_with_package_meshes_loads_as_pinocchio_would() {
 
 #[test]
 fn package_paths_resolve_through_the_search_path_and_ros_package_path() {
-    // Without a search path the package cannot be found: a clear error naming link and package.
-    let e = ArmModel::from_urdf_file_with(ur_urdf(), &UrdfOptions::default()).unwrap_err();
+    // Without a search path the package is found among the URDF's own folders (it holds the
+    // URDF, in `urdf/`).
+    let m = ArmModel::from_urdf_file_with(ur_urdf(), &UrdfOptions::default()).unwrap();
+    assert_eq!(m.ee_link_name(), "wrist_3_link");
+    // A copy of the URDF outside its package cannot find it: a clear error naming link and
+    // package.
+    let dir = std::env::temp_dir().join(format!("dkrrt-urdf-alone-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let alone = dir.join("ur_like.urdf");
+    std::fs::copy(ur_urdf(), &alone).unwrap();
+    let e = ArmModel::from_urdf_file_with(&alone, &UrdfOptions::default()).unwrap_err();
+    let _ = std::fs::remove_dir_all(&dir);
     match &e {
         ModelError::Mesh { link, reason } => {
             assert_eq!(link, "shoulder_link");
