@@ -48,8 +48,6 @@ pub struct Connect {
     v_max: [f64; NJ],
     /// Longest segment added in one step (max-norm over joints), rad.
     pub step_rad: f64,
-    /// Segments checked so far.
-    pub segments_checked: u64,
     /// Search iterations so far (a random sample each, then the other tree's connect).
     pub iterations: u64,
 }
@@ -65,7 +63,6 @@ impl Connect {
             q_max,
             v_max,
             step_rad: 0.3,
-            segments_checked: 0,
             iterations: 0,
         }
     }
@@ -78,7 +75,6 @@ impl Connect {
         a: &[f64; NJ],
         b: &[f64; NJ],
     ) -> bool {
-        self.segments_checked += 1;
         // Pseudo-time: the segment at the joint speed limits (the checker's speed bound holds
         // for no faster motion).
         let d = (0..NJ).map(|j| (b[j] - a[j]).abs() / self.v_max[j]).fold(0.0, f64::max);

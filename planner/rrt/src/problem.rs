@@ -3,7 +3,7 @@
 
 use dkrrt_model::{ArmModel, NJ};
 use dkrrt_msg::{DebrisShape, Trajectory, Zeroed};
-use dkrrt_otg::{KinState, Limits, Options, Sync};
+use dkrrt_otg::{KinState, Limits};
 use serde::{Deserialize, Serialize};
 
 use crate::build::Builder;
@@ -277,7 +277,7 @@ pub fn solve(
             // Shortcut; more while the path has more waypoints than a message carries motions.
             for _ in 0..10 {
                 c.shortcut(&mut planner.checker, &world, &mut path, 200, keep_going);
-                if let Some(times) = write_path(&path, &limits, &mut best) {
+                if let Some(times) = write_path(&planner, &path, &mut best) {
                     first_solution_s = Some(found_s);
                     arrival = best.duration_s;
                     waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
@@ -386,18 +386,14 @@ pub fn solve(
     Ok(sol)
 }
 
-/// Writes the path (rest-to-rest, phase-synchronized motions between its waypoints) into `out`;
-/// the arrival times at its inner waypoints. `None`: a motion could not be timed, or the
-/// message has too few segments for the path.
-fn write_path(path: &[[f64; NJ]], limits: &Limits<NJ>, out: &mut Trajectory) -> Option<Vec<f64>> {
-    let opts = Options { sync: Sync::Phase, ..Options::default() };
+/// Writes the path (the planner's rest-to-rest motions between its waypoints) into `out`; the
+/// arrival times at its inner waypoints. `None`: a motion could not be timed, or the message
+/// has too few segments for the path.
+fn write_path(planner: &Planner, path: &[[f64; NJ]], out: &mut Trajectory) -> Option<Vec<f64>> {
     let mut b = Builder::new(out, 1, 0);
     let mut times = Vec::new();
     for w in path.windows(2) {
-        let tr =
-            dkrrt_otg::Trajectory::calculate(&KinState::rest(w[0]), &KinState::rest(w[1]), limits, &opts)
-                .ok()?;
-        b.otg(&tr).ok()?;
+        b.otg(&planner.motion(&KinState::rest(w[0]), &w[1])?).ok()?;
         times.push(b.duration());
     }
     times.pop();

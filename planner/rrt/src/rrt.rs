@@ -232,8 +232,9 @@ impl Planner {
         &self.limits
     }
 
-    /// The rest-to-rest (or from the moving root) motion to `q`.
-    fn motion(&self, from: &KinState<NJ>, q: &[f64; NJ]) -> Option<dkrrt_otg::Trajectory<NJ>> {
+    /// The rest-to-rest (or from the moving root) motion to `q`: phase-synchronized, so from
+    /// rest it follows the straight joint-space segment.
+    pub(crate) fn motion(&self, from: &KinState<NJ>, q: &[f64; NJ]) -> Option<dkrrt_otg::Trajectory<NJ>> {
         let opts = Options { sync: Sync::Phase, ..Options::default() };
         dkrrt_otg::Trajectory::calculate(from, &KinState::rest(*q), &self.limits, &opts).ok()
     }
