@@ -6,28 +6,13 @@ use std::path::Path;
 use dkrrt_collision::descriptor_of;
 use dkrrt_config::Scenario;
 use dkrrt_msg::{ShapeKind, NJ};
-use dkrrt_rrt::problem::{solve, Problem, ProblemObstacle, ProblemPose, ProblemShape, Solution};
-
-/// Largest problem file read, bytes.
-const MAX_PROBLEM_BYTES: u64 = 64 << 20;
+use dkrrt_rrt::problem::{load, solve, Problem, ProblemObstacle, ProblemPose, ProblemShape, Solution};
 
 /// Reads, checks and solves a problem file; `time_limit` overrides the file's.
 pub fn plan(problem: &Path, time_limit: Option<f64>) -> Result<Solution, String> {
-    let name = problem.display();
-    let text = dkrrt_io::read_text_capped(problem, MAX_PROBLEM_BYTES).map_err(|e| format!("{name}: {e}"))?;
-    let mut p = Problem::from_json(&text).map_err(|e| format!("{name}: {e}"))?;
-    if let Some(t) = time_limit {
-        p.time_limit_s = t;
-        p.validate().map_err(|e| format!("--time-limit: {e}"))?;
-    }
-    let model = if p.urdf.is_empty() {
-        dkrrt_model::ArmModel::default_arm()
-    } else {
-        let u = problem.parent().unwrap_or(Path::new(".")).join(&p.urdf);
-        dkrrt_model::ArmModel::from_urdf_file(&u).map_err(|e| format!("{name}: urdf {}: {e}", u.display()))?
-    };
+    let (p, model) = load(problem, time_limit)?;
     let m = Scenario::default_scenario().motion;
-    solve(&p, model, m.v_max, m.a_max, m.j_max).map_err(|e| format!("{name}: {e}"))
+    solve(&p, model, m.v_max, m.a_max, m.j_max).map_err(|e| format!("{}: {e}", problem.display()))
 }
 
 /// The scenario (an episode, resolved) as a problem: its start and goal, its debris' true

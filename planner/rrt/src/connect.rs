@@ -21,6 +21,12 @@ use rand::{Rng, SeedableRng};
 use crate::check::Checker;
 use crate::world::WorldInTime;
 
+/// The longest segment one step adds, max-norm over the joints, rad. Chosen on random still
+/// problems with 32 obstacles (`planner/rrt/bench/clutter.py` seeds 3-5, checks counted
+/// through `planner/cabi/bench/compare.py`): 1 rad reached a first solution with fewer checks
+/// than 0.3, 2 or 3 rad, and plans as short (docs/journal.md, 2026-11-28).
+pub const STEP_RAD: f64 = 1.0;
+
 /// A node of one tree: a configuration and its parent (`u32::MAX`: the root).
 #[derive(Debug, Clone, Copy)]
 struct Node {
@@ -62,7 +68,7 @@ impl Connect {
             q_min,
             q_max,
             v_max,
-            step_rad: 0.3,
+            step_rad: STEP_RAD,
             iterations: 0,
         }
     }
@@ -80,6 +86,12 @@ impl Connect {
         let d = (0..NJ).map(|j| (b[j] - a[j]).abs() / self.v_max[j]).fold(0.0, f64::max);
         if d <= 0.0 {
             return checker.check_motion(world, 0.0, 0.0, 0.0, None, |_| *a).ok;
+        }
+        // The end first (one sample): a step that ends inside an obstacle is refused without
+        // the samples that would lead up to it. The segment's own check ends with that sample
+        // too, so the answer is the same.
+        if !checker.check_motion(world, 0.0, 0.0, 0.0, None, |_| *b).ok {
+            return false;
         }
         let speed: [f64; NJ] = std::array::from_fn(|j| (b[j] - a[j]).abs() / d);
         let v = checker.motion_speed(&speed);
@@ -101,12 +113,19 @@ impl Connect {
         best.1
     }
 
-    /// One step of tree `k` toward `target`.
-    fn extend(&mut self, k: usize, checker: &mut Checker, world: &WorldInTime, target: &[f64; NJ]) -> Step {
+    /// One step of tree `k` toward `target`, from its node `from` (`None`: the nearest).
+    fn extend(
+        &mut self,
+        k: usize,
+        checker: &mut Checker,
+        world: &WorldInTime,
+        target: &[f64; NJ],
+        from: Option<u32>,
+    ) -> Step {
         if self.trees[k].len() == self.trees[k].capacity() {
             return Step::Trapped;
         }
-        let near = self.nearest(k, target);
+        let near = from.unwrap_or_else(|| self.nearest(k, target));
         let qn = self.trees[k][near as usize].q;
         let span = (0..NJ).map(|j| (target[j] - qn[j]).abs()).fold(0.0, f64::max);
         let (q, reached) = if span <= self.step_rad {
@@ -169,13 +188,16 @@ impl Connect {
                 self.q_min[j] + (self.q_max[j] - self.q_min[j]) * self.rng.random::<f64>()
             });
             let b = 1 - a;
-            if !matches!(self.extend(a, checker, world, &qr), Step::Trapped) {
+            if !matches!(self.extend(a, checker, world, &qr, None), Step::Trapped) {
                 let q_new = self.trees[a].last().expect("a node").q;
                 // Connect: tree b steps toward the new node until it reaches it or is stopped.
+                // After its first step, the node just added is the nearest to the target (it
+                // lies a step nearer than the nearest was): no search for it.
+                let mut from = None;
                 let reached = loop {
-                    match self.extend(b, checker, world, &q_new) {
+                    match self.extend(b, checker, world, &q_new, from) {
                         Step::Reached => break true,
-                        Step::Advanced => continue,
+                        Step::Advanced => from = Some((self.trees[b].len() - 1) as u32),
                         Step::Trapped => break false,
                     }
                 };

@@ -180,11 +180,37 @@ impl Problem {
     }
 }
 
+/// Largest problem file read, bytes.
+pub const MAX_PROBLEM_BYTES: u64 = 64 << 20;
+
+/// Reads and checks a problem file and loads its arm (the shipped one, or its `urdf`, a path
+/// relative to the file); `time_limit` overrides the file's. Errors name the file and the field.
+pub fn load(path: &std::path::Path, time_limit: Option<f64>) -> Result<(Problem, ArmModel), String> {
+    let name = path.display();
+    let text = dkrrt_io::read_text_capped(path, MAX_PROBLEM_BYTES).map_err(|e| format!("{name}: {e}"))?;
+    let mut p = Problem::from_json(&text).map_err(|e| format!("{name}: {e}"))?;
+    if let Some(t) = time_limit {
+        p.time_limit_s = t;
+        p.validate().map_err(|e| format!("--time-limit: {e}"))?;
+    }
+    let model = if p.urdf.is_empty() {
+        ArmModel::default_arm()
+    } else {
+        let u = path.parent().unwrap_or(std::path::Path::new(".")).join(&p.urdf);
+        ArmModel::from_urdf_file(&u).map_err(|e| format!("{name}: urdf {}: {e}", u.display()))?
+    };
+    Ok((p, model))
+}
+
 /// The answer of [`solve`] (the `dkrrt plan` output).
 #[derive(Debug, Clone, Serialize)]
 pub struct Solution {
     pub solved: bool,
     pub first_solution_s: Option<f64>,
+    /// Configurations the checker measured up to the first solution (when RRT-Connect found
+    /// it; every sample of every segment), and in all.
+    pub first_solution_configs: Option<u64>,
+    pub configs_checked: u64,
     pub plan_time_s: f64,
     pub iterations: u32,
     /// Waypoints (rest configurations: start, …, goal) and the times the arm is at them.
@@ -206,6 +232,121 @@ pub const FINE_DELTA_M: f64 = 0.006;
 /// The finest δ a problem's start or goal near an obstacle gets, m (see [`solve`]).
 pub const MIN_DELTA_M: f64 = 0.002;
 
+/// A problem made ready to plan: its world, the planner (with the δ the problem needs), the
+/// clearances of its start and goal. What [`solve`] plans with, and what a reference planner
+/// checks its motions with (the C ABI in `planner/cabi`), so both are judged alike.
+pub struct Prepared {
+    pub world: WorldInTime,
+    pub planner: Planner,
+    pub limits: Limits<NJ>,
+    /// The start's clearance at t = 0 and the goal's after the last pose, m (< 0: in collision).
+    pub start_clear: f64,
+    pub goal_clear: f64,
+    /// Time of the last obstacle pose, s.
+    pub horizon: f64,
+    /// No obstacle moves, and the start and the goal leave the δ/2 every segment check needs:
+    /// RRT-Connect in joint space applies ([`crate::connect`]).
+    pub still: bool,
+    model: ArmModel,
+}
+
+impl Prepared {
+    /// Checks `p` against the arm `model` (joint limits) and prepares it; `v_default`: the
+    /// joint speed limits when the file has none; `a_max`/`j_max`: the motion limits.
+    pub fn new(
+        p: &Problem,
+        model: ArmModel,
+        v_default: [f64; NJ],
+        a_max: [f64; NJ],
+        j_max: [f64; NJ],
+    ) -> Result<Prepared, ProblemError> {
+        let l = *model.limits();
+        for (name, q) in [("start", &p.start), ("goal", &p.goal)] {
+            for i in 0..NJ {
+                if !(l.q_min[i]..=l.q_max[i]).contains(&q[i]) {
+                    return Err(err(
+                        format!("{name}[{i}]"),
+                        format!("outside the joint limits [{}, {}]", l.q_min[i], l.q_max[i]),
+                    ));
+                }
+            }
+        }
+        let world = p.world()?;
+        let horizon = p.obstacles.iter().flat_map(|o| o.poses.last()).map(|x| x.t).fold(0.0, f64::max);
+        let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
+        // Where the start and the goal stand (a reason to give when unsolved).
+        let mut probe = Checker::new(model.clone(), &limits.v_max, PlannerConfig::default().delta_m);
+        probe.cap = 100.0;
+        let start_clear = probe.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
+        let goal_clear = probe.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
+        // Every sample of a check needs δ/2 of clearance, the arm at rest at the start and at
+        // the goal included: a start or a goal nearer than that gets a finer δ (denser samples).
+        let near = start_clear.min(goal_clear);
+        let delta_m = if near >= 0.0 {
+            (1.8 * near).clamp(MIN_DELTA_M, PlannerConfig::default().delta_m)
+        } else {
+            PlannerConfig::default().delta_m
+        };
+        let cfg = PlannerConfig {
+            seed: p.seed,
+            delta_m,
+            // The obstacles' motion is known for all time (held after the last pose): check
+            // every motion to its end, and rests to 5 s past the last pose.
+            lookahead_s: (horizon + 5.0).max(60.0),
+            check_whole_motions: true,
+            improve_iters: u32::MAX,
+            max_configs: u64::MAX,
+            max_nodes: 4000,
+            ..PlannerConfig::default()
+        };
+        let planner = Planner::new(model.clone(), limits, cfg);
+        let moving =
+            p.obstacles.iter().any(|o| o.poses.windows(2).any(|w| w[0].p != w[1].p || w[0].q != w[1].q));
+        let half = 0.5 * delta_m;
+        let still = !moving && start_clear >= half && goal_clear >= half;
+        Ok(Prepared { world, planner, limits, start_clear, goal_clear, horizon, still, model })
+    }
+
+    /// The RRT-Connect search of this problem (trees of `max_nodes` each).
+    pub fn connect(&self, max_nodes: usize, seed: u64) -> Connect {
+        let l = self.model.limits();
+        Connect::new(l.q_min.into(), l.q_max.into(), self.limits.v_max, max_nodes, seed)
+    }
+
+    /// Times a path of rest configurations (the planner's rest-to-rest motions between its
+    /// waypoints) into `out`; the arrival times at its inner waypoints. `None`: a motion could
+    /// not be timed, or the message has too few segments for the path.
+    pub fn time_path(&self, path: &[[f64; NJ]], out: &mut Trajectory) -> Option<Vec<f64>> {
+        write_path(&self.planner, path, out)
+    }
+
+    /// The final check of a timed plan: the sampled check of the message (again at
+    /// [`FINE_DELTA_M`] if it fails at the planner's δ), and the clearance every 1 ms to 1 s
+    /// past its end. (passed, smallest clearance beyond the margin [m]).
+    pub fn verify(&mut self, out: &Trajectory) -> (bool, f64) {
+        let end = out.duration_s + 1.0;
+        let (mut ok, _) = check_message(&mut self.planner, &self.world, out, 0.0, end);
+        if !ok && self.planner.cfg.delta_m > FINE_DELTA_M {
+            // The sampled check needs δ/2 of clearance at each sample, so a plan that passes
+            // nearer than that can fail it where a sample falls: checked again with a finer δ.
+            let fine = Checker::new(self.model.clone(), &self.limits.v_max, FINE_DELTA_M);
+            let coarse = std::mem::replace(&mut self.planner.checker, fine);
+            ok = check_message(&mut self.planner, &self.world, out, 0.0, end).0;
+            self.planner.checker = coarse;
+        }
+        let mut m = f64::INFINITY;
+        let cap = std::mem::replace(&mut self.planner.checker.cap, 100.0);
+        let mut t = 0.0;
+        while t <= end {
+            let q = out.sample(t).p;
+            m = m.min(self.planner.checker.clearance_at(&self.world, &q, t, 0.0, f64::NEG_INFINITY));
+            t += 1e-3;
+        }
+        self.planner.checker.cap = cap;
+        (ok && m >= 0.0, m)
+    }
+}
+
 /// Solves `p` for the arm `model` within `p.time_limit_s` (wall clock), anytime: the first
 /// solution, then improvements until the time limit. `a_max`/`j_max`: the motion limits.
 pub fn solve(
@@ -215,46 +356,8 @@ pub fn solve(
     a_max: [f64; NJ],
     j_max: [f64; NJ],
 ) -> Result<Solution, ProblemError> {
-    let l = *model.limits();
-    for (name, q) in [("start", &p.start), ("goal", &p.goal)] {
-        for i in 0..NJ {
-            if !(l.q_min[i]..=l.q_max[i]).contains(&q[i]) {
-                return Err(err(
-                    format!("{name}[{i}]"),
-                    format!("outside the joint limits [{}, {}]", l.q_min[i], l.q_max[i]),
-                ));
-            }
-        }
-    }
-    let world = p.world()?;
-    let horizon = p.obstacles.iter().flat_map(|o| o.poses.last()).map(|x| x.t).fold(0.0, f64::max);
-    let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
-    // Where the start and the goal stand (a reason to give when unsolved).
-    let mut probe = Checker::new(model.clone(), &limits.v_max, PlannerConfig::default().delta_m);
-    probe.cap = 100.0;
-    let start_clear = probe.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
-    let goal_clear = probe.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
-    // Every sample of a check needs δ/2 of clearance, the arm at rest at the start and at the
-    // goal included: a start or a goal nearer than that gets a finer δ (denser samples).
-    let near = start_clear.min(goal_clear);
-    let delta_m = if near >= 0.0 {
-        (1.8 * near).clamp(MIN_DELTA_M, PlannerConfig::default().delta_m)
-    } else {
-        PlannerConfig::default().delta_m
-    };
-    let cfg = PlannerConfig {
-        seed: p.seed,
-        delta_m,
-        // The obstacles' motion is known for all time (held after the last pose): check every
-        // motion to its end, and rests to 5 s past the last pose.
-        lookahead_s: (horizon + 5.0).max(60.0),
-        check_whole_motions: true,
-        improve_iters: u32::MAX,
-        max_configs: u64::MAX,
-        max_nodes: 4000,
-        ..PlannerConfig::default()
-    };
-    let mut planner = Planner::new(model.clone(), limits, cfg);
+    let mut prep = Prepared::new(p, model, v_default, a_max, j_max)?;
+    let (start_clear, goal_clear, horizon) = (prep.start_clear, prep.goal_clear, prep.horizon);
     let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut best = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut waypoints: Vec<([f64; NJ], f64)> = Vec::new();
@@ -262,30 +365,47 @@ pub fn solve(
     let limit = p.time_limit_s;
     let req = Request { start: KinState::rest(p.start), t0: 0.0, goal: p.goal };
     let (mut arrival, mut first_solution_s, mut iterations, mut rounds) = (f64::MAX, None, 0u32, 0u32);
-    // Nothing moves: RRT-Connect in joint space first (`crate::connect`), its path shortcut
-    // and timed by rest-to-rest motions.
-    let still = p.obstacles.iter().all(|o| o.poses.windows(2).all(|w| w[0].p == w[1].p && w[0].q == w[1].q));
-    // Its segment checks need δ/2 of clearance at every sample, so the start and the goal too.
-    let half = 0.5 * planner.cfg.delta_m;
-    let connect = still && start_clear >= half && goal_clear >= half;
+    // Nothing moves: RRT-Connect in joint space (`crate::connect`), each path found shortcut
+    // and timed by rest-to-rest motions, again and again until the time limit (anytime by
+    // restarts, as OMPL's AnytimePathShortening: a first solution in milliseconds, then the
+    // best of many). The space-time rounds below get the time only if it finds nothing.
+    let connect = prep.still;
+    let configs0 = prep.planner.checker.configs_checked;
+    let mut first_configs = None;
     if connect {
         let keep_going = || t_start.elapsed().as_secs_f64() < limit;
-        let mut c = Connect::new(l.q_min.into(), l.q_max.into(), limits.v_max, 20_000, p.seed);
+        let mut c = prep.connect(20_000, p.seed);
         let mut path = Vec::new();
-        if c.solve(&mut planner.checker, &world, &p.start, &p.goal, keep_going, &mut path) {
+        let mut cand = Box::new(<Trajectory as Zeroed>::zeroed());
+        let Prepared { planner, world, .. } = &mut prep;
+        loop {
+            if !c.solve(&mut planner.checker, world, &p.start, &p.goal, keep_going, &mut path) {
+                break;
+            }
             let found_s = t_start.elapsed().as_secs_f64();
+            let found_configs = planner.checker.configs_checked - configs0;
             // Shortcut; more while the path has more waypoints than a message carries motions.
             for _ in 0..10 {
-                c.shortcut(&mut planner.checker, &world, &mut path, 200, keep_going);
-                if let Some(times) = write_path(&planner, &path, &mut best) {
-                    first_solution_s = Some(found_s);
-                    arrival = best.duration_s;
-                    waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
+                c.shortcut(&mut planner.checker, world, &mut path, 200, keep_going);
+                if let Some(times) = write_path(planner, &path, &mut cand) {
+                    first_solution_s = first_solution_s.or(Some(found_s));
+                    first_configs = first_configs.or(Some(found_configs));
+                    if cand.duration_s < arrival {
+                        arrival = cand.duration_s;
+                        *best = *cand;
+                        waypoints.clear();
+                        waypoints.extend(path[1..path.len() - 1].iter().copied().zip(times));
+                    }
                     break;
                 }
                 if !keep_going() {
                     break;
                 }
+            }
+            // The straight motion is the shortest; else search again (fresh trees, the random
+            // stream going on) while time remains, keeping the earliest arrival.
+            if path.len() <= 2 || !keep_going() {
+                break;
             }
         }
         iterations = iterations.saturating_add(c.iterations.min(u32::MAX as u64) as u32);
@@ -295,7 +415,8 @@ pub fn solve(
     loop {
         let round_s = t_start.elapsed().as_secs_f64();
         let keep_going = || t_start.elapsed().as_secs_f64() < limit;
-        let plan = planner.plan_to_beat(&req, &world, arrival, u32::MAX, keep_going, 1, &mut out);
+        let Prepared { planner, world, .. } = &mut prep;
+        let plan = planner.plan_to_beat(&req, world, arrival, u32::MAX, keep_going, 1, &mut out);
         iterations = iterations.saturating_add(planner.stats.iterations);
         rounds += 1;
         if let Some(pl) = plan.filter(|x| x.reach == Reach::Goal && x.arrival < arrival) {
@@ -315,6 +436,8 @@ pub fn solve(
     let mut sol = Solution {
         solved,
         first_solution_s: None,
+        first_solution_configs: first_configs,
+        configs_checked: prep.planner.checker.configs_checked - configs0,
         plan_time_s,
         iterations,
         path: Vec::new(),
@@ -360,24 +483,7 @@ pub fn solve(
         row[1..].copy_from_slice(&s.p);
         sol.trajectory.push(row);
     }
-    let end = out.duration_s + 1.0;
-    let (mut ok, _) = check_message(&mut planner, &world, &out, 0.0, end);
-    if !ok && planner.cfg.delta_m > FINE_DELTA_M {
-        // The sampled check needs δ/2 of clearance at each sample, so a plan that passes
-        // nearer than that can fail it where a sample falls: checked again with a finer δ.
-        let coarse =
-            std::mem::replace(&mut planner.checker, Checker::new(model.clone(), &limits.v_max, FINE_DELTA_M));
-        ok = check_message(&mut planner, &world, &out, 0.0, end).0;
-        planner.checker = coarse;
-    }
-    let mut m = f64::INFINITY;
-    planner.checker.cap = 100.0;
-    let mut t = 0.0;
-    while t <= end {
-        let q = out.sample(t).p;
-        m = m.min(planner.checker.clearance_at(&world, &q, t, 0.0, f64::NEG_INFINITY));
-        t += 1e-3;
-    }
+    let (ok, m) = prep.verify(&out);
     sol.min_clearance_m = Some(m);
     sol.solved = ok && m >= 0.0;
     if !sol.solved {

@@ -343,3 +343,61 @@ fn a_goal_nearer_an_obstacle_than_half_the_sampling_delta_is_reached() {
     assert!(sol.solved, "{:?}", sol.why);
     assert!(sol.min_clearance_m.unwrap() >= 0.0);
 }
+
+#[test]
+fn a_step_into_an_obstacle_costs_one_sample() {
+    // RRT-Connect checks a step's end first: a segment from a clear start that ends inside a
+    // sphere is refused after one sample, not after the samples leading up to the sphere.
+    let lim = default_limits();
+    let l = *ArmModel::default_arm().limits();
+    let w = problem(START, TURNED, link4_at(&TURNED), 0.2).world().unwrap();
+    let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    let mut c = dkrrt_rrt::connect::Connect::new(l.q_min.into(), l.q_max.into(), lim.v_max, 10, 1);
+    assert!(ch.clearance_at(&w, &START, 0.0, 0.0, f64::NEG_INFINITY) > 0.3);
+    let before = ch.configs_checked;
+    assert!(!c.segment_clear(&mut ch, &w, &START, &TURNED));
+    assert_eq!(ch.configs_checked - before, 1, "one sample, at the end");
+    // A clear segment is still sampled along its length (its end checked once more as part of
+    // it), and a segment that enters the sphere and leaves it is still refused.
+    let before = ch.configs_checked;
+    let mut short = START;
+    short[0] = 0.3;
+    assert!(c.segment_clear(&mut ch, &w, &START, &short));
+    assert!(ch.configs_checked - before > 2);
+    let mut beyond = TURNED;
+    beyond[0] = 1.6;
+    assert!(ch.clearance_at(&w, &beyond, 0.0, 0.0, f64::NEG_INFINITY) > 0.015, "beyond the sphere, clear");
+    assert!(!c.segment_clear(&mut ch, &w, &START, &beyond), "through the sphere");
+}
+
+#[test]
+fn restarts_keep_the_earliest_arrival() {
+    // A still problem restarts RRT-Connect until its time limit and keeps the earliest arrival:
+    // never later than the first search's own path (shortcut and timed as `solve` does), which
+    // is also the first search of `solve`, the same seed.
+    let lim = default_limits();
+    let mut p = problem(START, TURNED, link4_on_straight(&lim, &TURNED, 0.5), 0.15);
+    p.time_limit_s = 0.5;
+    let prep = problem::Prepared::new(&p, ArmModel::default_arm(), lim.v_max, lim.a_max, lim.j_max).unwrap();
+    assert!(prep.still);
+    let mut prep = prep;
+    let mut c = prep.connect(20_000, p.seed);
+    let mut path = Vec::new();
+    let problem::Prepared { planner, world, .. } = &mut prep;
+    assert!(c.solve(&mut planner.checker, world, &p.start, &p.goal, || true, &mut path));
+    assert!(path.len() > 2, "the straight motion is blocked");
+    c.shortcut(&mut planner.checker, world, &mut path, 200, || true);
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    prep.time_path(&path, &mut out).expect("timed");
+    let first = out.duration_s;
+    let sol = solve_default(&p);
+    assert!(sol.solved, "{:?}", sol.why);
+    assert!(
+        sol.duration_s <= first + 1e-9,
+        "{} s after restarts, {first} s the first search",
+        sol.duration_s
+    );
+    // And the plan kept is checked like any other.
+    let (ok, m) = prep.verify(&out);
+    assert!(ok && m >= 0.0, "the first search's plan passes the final check ({m} m)");
+}
