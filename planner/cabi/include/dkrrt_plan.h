@@ -1,7 +1,8 @@
 /* dkrrt-plan-cabi: the checks of `dkrrt plan`, for reference planners (C ABI).
  * Build: cargo build --release -p dkrrt-plan-cabi   (target/release/libdkrrt_plan_cabi.a)
  * Link:  -ldkrrt_plan_cabi -lpthread -ldl -lm
- * Every function refuses null arguments (-1) and never dereferences them. */
+ * Every function refuses null arguments (-1) and never dereferences them. A handle is used
+ * by one thread at a time (it holds the checker's buffers and counters). */
 #ifndef DKRRT_PLAN_H
 #define DKRRT_PLAN_H
 #include <stddef.h>
