@@ -26,9 +26,8 @@
 
 use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
-use dkrrt_msg::MAX_DEBRIS;
 
-use crate::world::{Gaps, Near, WorldInTime};
+use crate::world::{Gaps, Near, WorldInTime, MAX_TRACKS};
 
 /// Result of checking a stretch of time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,7 +81,7 @@ impl Checker {
         Checker {
             poser,
             caps: [PosedCapsule::default(); NJ],
-            obs: Vec::with_capacity(MAX_DEBRIS),
+            obs: Vec::with_capacity(MAX_TRACKS),
             arm_speed,
             delta: delta_m.max(1e-4),
             q_min,
@@ -241,7 +240,7 @@ impl Checker {
             }
         }
         // Per track kept: how fast its gap to the arm can close over the stretch.
-        let mut closing = [0.0f64; MAX_DEBRIS];
+        let mut closing = [0.0f64; MAX_TRACKS];
         let mask = world.near_speeds(t0, t1c, &centre, radius + self.cap, half, &mut closing);
         closing.iter_mut().for_each(|v| *v += v_arm);
         let mut t = t0;

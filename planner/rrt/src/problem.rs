@@ -111,8 +111,8 @@ impl Problem {
         if !(self.time_limit_s.is_finite() && self.time_limit_s > 0.0 && self.time_limit_s <= 600.0) {
             return Err(err("time_limit_s", "must be within (0, 600] s"));
         }
-        if self.obstacles.len() > dkrrt_msg::MAX_DEBRIS {
-            return Err(err("obstacles", format!("at most {} obstacles", dkrrt_msg::MAX_DEBRIS)));
+        if self.obstacles.len() > crate::world::MAX_TRACKS {
+            return Err(err("obstacles", format!("at most {} obstacles", crate::world::MAX_TRACKS)));
         }
         for (i, o) in self.obstacles.iter().enumerate() {
             let f = |x: &str| format!("obstacles[{i}].{x}");

@@ -76,7 +76,12 @@ pub enum WorldError {
     Poses { index: usize, reason: String },
 }
 
-/// Tracks of the world in time (fixed capacity: [`MAX_DEBRIS`] tracks).
+/// Most tracks a world holds: a planning-problem file's obstacles (a forecast carries at most
+/// [`MAX_DEBRIS`]). Track sets are bit masks of a `u64`.
+pub const MAX_TRACKS: usize = 64;
+const _: () = assert!(MAX_DEBRIS <= MAX_TRACKS && MAX_TRACKS <= 64);
+
+/// Tracks of the world in time (fixed capacity: [`MAX_TRACKS`] tracks).
 #[derive(Debug, Clone)]
 pub struct WorldInTime {
     tracks: Vec<Track>,
@@ -91,7 +96,7 @@ pub struct WorldInTime {
 impl WorldInTime {
     /// An empty world; obstacles are inflated by σ + `margin_m`.
     pub fn new(margin_m: f64) -> Self {
-        let tracks = (0..MAX_DEBRIS)
+        let tracks = (0..MAX_TRACKS)
             .map(|_| Track {
                 id: 0,
                 shape: DebrisShape::default(),
@@ -173,8 +178,8 @@ impl WorldInTime {
         poses: &[TimedPose],
         after: After,
     ) -> Result<(), WorldError> {
-        if self.n >= MAX_DEBRIS {
-            return Err(WorldError::TooMany { got: self.n + 1, max: MAX_DEBRIS });
+        if self.n >= MAX_TRACKS {
+            return Err(WorldError::TooMany { got: self.n + 1, max: MAX_TRACKS });
         }
         if poses.is_empty() {
             return Err(WorldError::Poses { index: self.n, reason: "at least one pose".into() });
@@ -214,7 +219,7 @@ impl WorldInTime {
     /// centre and σ together move at most that speed over the window, so over the half window
     /// it stays inside that sphere grown by speed × half window.
     pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
-        let mut speeds = [0.0; MAX_DEBRIS];
+        let mut speeds = [0.0; MAX_TRACKS];
         let mask = self.near_speeds(t0, t1, centre, radius, extra, &mut speeds);
         (mask, speeds.iter().fold(0.0, |a: f64, &b| a.max(b)))
     }
@@ -228,9 +233,8 @@ impl WorldInTime {
         centre: &[f64; 3],
         radius: f64,
         extra: f64,
-        speeds: &mut [f64; MAX_DEBRIS],
+        speeds: &mut [f64; MAX_TRACKS],
     ) -> u64 {
-        const _: () = assert!(MAX_DEBRIS <= 64);
         let (tm, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0).max(0.0));
         let mut mask = 0u64;
         speeds.fill(0.0);
@@ -316,7 +320,7 @@ impl WorldInTime {
                     nr.arm.iter().map(|c| dist3(&s.p, &c.centre) - c.bound - r).fold(f64::INFINITY, f64::min);
                 if let Some(g) = gaps.as_deref_mut() {
                     g.gap[i] = g_arm.max(g_caps);
-                    g.track[out.len().min(MAX_DEBRIS - 1)] = i as u8;
+                    g.track[out.len().min(MAX_TRACKS - 1)] = i as u8;
                 }
                 if !(g_caps < nr.cap + 1e-9) {
                     continue;
@@ -333,6 +337,8 @@ impl WorldInTime {
                 Obstacle::from_desc(tr.id, &tr.shape, tr.radius, &s.p, &q, s.sigma + base)
                     .with_ball(&s.p, tr.radius + s.sigma_pos + base)
             };
+            // `out` has room for every track (allocation-free); a smaller one would drop some.
+            debug_assert!(out.len() < out.capacity(), "obstacles_gapped: `out` holds fewer than the tracks");
             if out.len() < out.capacity() {
                 out.push(o);
             }
@@ -415,14 +421,14 @@ fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 #[derive(Debug, Clone, Copy)]
 pub struct Gaps {
     /// `gap[i]`: every point of track `i`'s inflated shape is at least this far from the arm, m.
-    pub gap: [f64; MAX_DEBRIS],
+    pub gap: [f64; MAX_TRACKS],
     /// `track[k]`: the track of the `k`-th obstacle written.
-    pub track: [u8; MAX_DEBRIS],
+    pub track: [u8; MAX_TRACKS],
 }
 
 impl Default for Gaps {
     fn default() -> Self {
-        Gaps { gap: [f64::INFINITY; MAX_DEBRIS], track: [0; MAX_DEBRIS] }
+        Gaps { gap: [f64::INFINITY; MAX_TRACKS], track: [0; MAX_TRACKS] }
     }
 }
 

@@ -401,3 +401,57 @@ fn restarts_keep_the_earliest_arrival() {
     let (ok, m) = prep.verify(&out);
     assert!(ok && m >= 0.0, "the first search's plan passes the final check ({m} m)");
 }
+
+#[test]
+fn a_problem_holds_up_to_64_obstacles_and_sees_every_one() {
+    // 63 obstacles far away and, last, a sphere on the straight motion: the plan goes around
+    // the 64th as around a first one (none is dropped past the forecasts' 32).
+    let lim = default_limits();
+    let mut p = problem(START, TURNED, link4_on_straight(&lim, &TURNED, 0.5), 0.15);
+    p.time_limit_s = 1.0;
+    let blocker = p.obstacles.pop().unwrap();
+    for k in 0..63 {
+        let a = k as f64 * 0.1;
+        let far = ProblemPose { t: 0.0, p: [30.0 * a.cos(), 30.0 * a.sin(), 0.0], q: [1.0, 0.0, 0.0, 0.0] };
+        p.obstacles.push(ProblemObstacle { shape: ProblemShape::Sphere { radius: 0.2 }, poses: vec![far] });
+    }
+    p.obstacles.push(blocker);
+    assert_eq!(p.obstacles.len(), 64);
+    p.validate().unwrap();
+    let sol = solve_default(&p);
+    assert!(sol.solved, "{:?}", sol.why);
+    assert!(sol.path.len() > 2, "a detour round the 64th obstacle");
+    assert!(sol.min_clearance_m.unwrap() >= 0.0);
+    // Without it, the direct motion.
+    let mut free = p.clone();
+    free.obstacles.pop();
+    let sol = solve_default(&free);
+    assert!(sol.solved && sol.path.len() == 2, "{:?}", sol.path.len());
+    // A 65th is refused, naming the field.
+    p.obstacles.push(p.obstacles[0].clone());
+    let e = p.validate().unwrap_err().to_string();
+    assert!(e.contains("obstacles") && e.contains("at most 64"), "{e}");
+}
+
+#[test]
+fn a_checker_measures_all_64_tracks_when_all_are_near() {
+    // 63 small spheres 0.5 m above link 4 (within the checker's 1 m cap: every one is
+    // measured) and a 64th on link 4: the configuration is in collision. A checker holding
+    // fewer obstacles than the world's tracks would drop the last and call it clear.
+    let c = link4_at(&START);
+    let pose = |p: [f64; 3]| TimedPose { t: 0.0, p, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 };
+    let mut w = WorldInTime::new(0.0);
+    let above = [c[0], c[1], c[2] + 0.5];
+    for k in 0..63 {
+        w.push_track(k, dkrrt_msg::DebrisShape::sphere(0.01), &[pose(above)], After::Hold).unwrap();
+    }
+    let mut ch = Checker::new(ArmModel::default_arm(), &default_limits().v_max, 0.03);
+    let near = ch.clearance_at(&w, &START, 0.0, 0.0, f64::NEG_INFINITY);
+    assert!(near > 0.0 && near < ch.cap, "the 63 are near and clear: {near}");
+    w.push_track(63, dkrrt_msg::DebrisShape::sphere(0.1), &[pose(c)], After::Hold).unwrap();
+    assert_eq!(w.len(), 64);
+    let with_last = ch.clearance_at(&w, &START, 0.0, 0.0, f64::NEG_INFINITY);
+    assert!(with_last < 0.0, "the 64th is measured: {with_last}");
+    // The world holds no more.
+    assert!(w.push_track(64, dkrrt_msg::DebrisShape::sphere(0.1), &[pose(c)], After::Hold).is_err());
+}
