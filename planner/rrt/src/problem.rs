@@ -370,6 +370,11 @@ pub fn solve(
     // restarts, as OMPL's AnytimePathShortening: a first solution in milliseconds, then the
     // best of many). The space-time rounds below get the time only if it finds nothing.
     let connect = prep.still;
+    // No plan arrives before the direct rest-to-rest motion would (every joint must cover its
+    // own distance within its limits): an arrival that early ends the search.
+    let direct = prep.time_path(&[p.start, p.goal], &mut out).map_or(0.0, |_| out.duration_s);
+    let optimal = |arrival: f64| arrival <= direct + 1e-6;
+    prep.planner.arrival_floor = direct + 1e-6;
     let configs0 = prep.planner.checker.configs_checked;
     let mut first_configs = None;
     if connect {
@@ -404,7 +409,7 @@ pub fn solve(
             }
             // The straight motion is the shortest; else search again (fresh trees, the random
             // stream going on) while time remains, keeping the earliest arrival.
-            if path.len() <= 2 || !keep_going() {
+            if path.len() <= 2 || optimal(arrival) || !keep_going() {
                 break;
             }
         }
@@ -412,7 +417,7 @@ pub fn solve(
     }
     // Rounds until the time limit: a round ends when its tree is full, and the next grows a
     // new tree (the random stream goes on) that keeps only arrivals earlier than the best.
-    loop {
+    while !optimal(arrival) {
         let round_s = t_start.elapsed().as_secs_f64();
         let keep_going = || t_start.elapsed().as_secs_f64() < limit;
         let Prepared { planner, world, .. } = &mut prep;

@@ -197,6 +197,9 @@ pub struct Planner {
     best_goal: Option<(u32, f64, f64, f64)>, // (parent node, wait, arrival, min clearance)
     /// Only arrivals before this are wanted ([`Planner::plan_to_beat`]; else infinite).
     before: f64,
+    /// No plan can arrive earlier than this (plant time, s): a search that finds such an
+    /// arrival stops there (a problem file's direct motion; else −∞, never).
+    pub arrival_floor: f64,
     path: Vec<u32>,
     pub stats: PlanStats,
     /// Wall time from the start of the last `plan` call to its first solution, s.
@@ -220,6 +223,7 @@ impl Planner {
             rng: SmallRng::seed_from_u64(cfg.seed),
             best_goal: None,
             before: f64::INFINITY,
+            arrival_floor: f64::NEG_INFINITY,
             path: Vec::with_capacity(cfg.max_nodes.max(2)),
             stats: PlanStats::default(),
             first_solution_s: None,
@@ -492,7 +496,8 @@ impl Planner {
         let mut it = 0u32;
         while it < budget && keep_going() && self.checker.configs_checked - c0 < self.cfg.max_configs {
             if let Some(f) = first {
-                if it >= f.saturating_add(self.cfg.improve_iters) {
+                let floor = self.best_goal.is_some_and(|b| b.2 <= self.arrival_floor);
+                if floor || it >= f.saturating_add(self.cfg.improve_iters) {
                     break;
                 }
             } else if self.before.is_finite() && it >= self.cfg.improve_iters {

@@ -4,7 +4,9 @@
 //!
 //! * Between poses: position linear, attitude slerp (`dkrrt_collision::interpolate_pose`, the
 //!   same function the predictor puts its forecasts on the common grid with), σ linear.
-//! * Before the first pose: the motion of the first interval, extended backwards.
+//! * Before the first pose: for a **forecast** track, the motion of the first interval extended
+//!   backwards (the forecast's `t0` is one step before its first pose); a **problem** obstacle
+//!   is at its first pose (held, as its last is after it).
 //! * Past the last pose of a **forecast** track (its horizon): the centre keeps the velocity of
 //!   the last interval, the attitude is no longer predicted (the shape becomes its bounding
 //!   sphere, which holds every attitude), and the position bound keeps growing at the rate of
@@ -35,12 +37,12 @@ pub struct TimedPose {
     pub sigma_pos: f64,
 }
 
-/// What happens after a track's last pose.
+/// What happens outside a track's poses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum After {
-    /// Forecast: extrapolate (see the module docs).
+    /// Forecast: extrapolate, after the last pose and before the first (see the module docs).
     Extrapolate,
-    /// Problem obstacle: hold the last pose.
+    /// Problem obstacle: hold the last pose after it, and the first before it.
     Hold,
 }
 
@@ -503,21 +505,26 @@ fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
     v
 }
 
+/// Pose `a` held.
+fn held(a: &TimedPose) -> State {
+    State {
+        p: a.p,
+        sigma: a.sigma,
+        sigma_pos: a.sigma_pos,
+        sphere: false,
+        qa: a.q,
+        qb: a.q,
+        arc: SlerpArc::between(&a.q, &a.q),
+        f: 0.0,
+    }
+}
+
 fn state_at(tr: &Track, t: f64) -> State {
     let ps = &tr.poses;
     let n = ps.len();
     if n == 1 {
         let a = ps[0];
-        let hold = State {
-            p: a.p,
-            sigma: a.sigma,
-            sigma_pos: a.sigma_pos,
-            sphere: false,
-            qa: a.q,
-            qb: a.q,
-            arc: SlerpArc::between(&a.q, &a.q),
-            f: 0.0,
-        };
+        let hold = held(&a);
         return match tr.after {
             After::Hold => hold,
             After::Extrapolate => {
@@ -526,6 +533,10 @@ fn state_at(tr: &Track, t: f64) -> State {
                 State { sigma: a.sigma + g, sigma_pos: a.sigma_pos + g, sphere: dt > 0.0, ..hold }
             }
         };
+    }
+    // A problem obstacle is at its first pose until that pose's time (as at its last after).
+    if tr.after == After::Hold && t < ps[0].t {
+        return held(&ps[0]);
     }
     let k = interval_of(tr, t);
     let (a, b) = (ps[k], ps[k + 1]);

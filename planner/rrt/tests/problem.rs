@@ -455,3 +455,62 @@ fn a_checker_measures_all_64_tracks_when_all_are_near() {
     // The world holds no more.
     assert!(w.push_track(64, dkrrt_msg::DebrisShape::sphere(0.1), &[pose(c)], After::Hold).is_err());
 }
+
+#[test]
+fn a_problem_obstacle_is_at_its_first_pose_before_that_pose_time() {
+    // A sphere on link 4 of the arm at the start, its first pose at t = 2 s, gone far away by
+    // 4 s: the arm starts inside it (held at its first pose before 2 s), so the problem is
+    // unsolvable and says why. Extended backwards instead, the sphere would be 9 m off at
+    // t = 0 and the start clear.
+    let c = link4_at(&START);
+    let mut p = problem(START, GOAL, c, 0.2);
+    p.obstacles[0].poses[0].t = 2.0;
+    p.obstacles[0].poses.push(ProblemPose { t: 4.0, p: [c[0] + 9.0, c[1], c[2]], q: [1.0, 0.0, 0.0, 0.0] });
+    let sol = solve_default(&p);
+    assert!(!sol.solved);
+    let why = sol.why.expect("a reason");
+    assert!(why.contains("the start is in collision at t = 0"), "{why}");
+    // Held at the first pose from t = 0 to 2 s, then moving off: the world says the same.
+    let prep = dkrrt_rrt::problem::Prepared::new(
+        &p,
+        ArmModel::default_arm(),
+        default_limits().v_max,
+        default_limits().a_max,
+        default_limits().j_max,
+    )
+    .unwrap();
+    for t in [0.0, 1.0, 1.999] {
+        assert_eq!(prep.world.pose_at(0, t).0, c, "at {t} s");
+    }
+    let (p3, ..) = prep.world.pose_at(0, 3.0);
+    assert!((p3[0] - (c[0] + 4.5)).abs() < 1e-9, "{p3:?}");
+}
+
+#[test]
+fn a_plan_as_early_as_the_direct_motion_ends_the_search() {
+    // Nothing in the way (still, and moving): the direct motion is found and nothing can arrive
+    // earlier, so the search stops there instead of running to the time limit. The same for
+    // a goal equal to the start (a plan of no motion).
+    let lim = default_limits();
+    let direct = straight(&lim, &GOAL).duration();
+    let mut still = problem(START, GOAL, [30.0, 0.0, 0.0], 0.2);
+    still.time_limit_s = 5.0;
+    let mut moving = still.clone();
+    moving.obstacles[0].poses.push(ProblemPose { t: 1.0, p: [31.0, 0.0, 0.0], q: [1.0, 0.0, 0.0, 0.0] });
+    for p in [&still, &moving] {
+        let sol = solve_default(p);
+        assert!(sol.solved, "{:?}", sol.why);
+        assert!((sol.duration_s - direct).abs() < 1e-6, "{} vs {direct}", sol.duration_s);
+        assert!(sol.plan_time_s < p.time_limit_s, "{} s", sol.plan_time_s);
+    }
+    let mut same = still.clone();
+    same.goal = START;
+    let sol = solve_default(&same);
+    assert!(sol.solved && sol.duration_s == 0.0, "{:?} {}", sol.why, sol.duration_s);
+    assert!(sol.plan_time_s < same.time_limit_s, "{} s", sol.plan_time_s);
+    // Blocked: the search uses its time (an earlier arrival might still be found).
+    let mut blocked = problem(START, TURNED, link4_on_straight(&lim, &TURNED, 0.5), 0.15);
+    blocked.time_limit_s = 0.3;
+    let sol = solve_default(&blocked);
+    assert!(sol.solved && sol.plan_time_s >= blocked.time_limit_s, "{} s", sol.plan_time_s);
+}
