@@ -16,6 +16,13 @@
 //! they change neither the verdict nor the (capped) clearance, and `V_obs` is the largest
 //! speed of the tracks kept, so a fast object far away no longer shortens every sample step.
 //!
+//! **Speeds from where the samples are.** A track's closing speed is first bounded over the
+//! whole stretch; where that would space samples under 0.1 ms apart (a problem obstacle with a
+//! fast leg somewhere in the stretch), it is bounded again from the current sample to the
+//! stretch's end, still an upper bound for every later step. A check never takes more than
+//! [`Checker::max_samples`] samples (200 000): one that would is not clear, so a check ends
+//! whatever the obstacles' speeds.
+//!
 //! **A start inside the inflation.** The obstacles are inflated by the forecast's bound plus a
 //! margin, so a newer forecast can put the arm *inside* an inflated obstacle while the object
 //! itself is still away. Refusing every motion from there leaves the arm where the object is
@@ -65,6 +72,10 @@ pub struct Checker {
     pub cap: f64,
     /// Configurations checked so far.
     pub configs_checked: u64,
+    /// The most samples one check takes: a motion that would need more is not clear (a
+    /// guarantee that a check ends, whatever the obstacles' speeds; realistic checks take a
+    /// few hundred).
+    pub max_samples: u32,
     /// The last sample's gap per track ([`WorldInTime::obstacles_gapped`]).
     gaps: Gaps,
 }
@@ -90,6 +101,7 @@ impl Checker {
             relief: None,
             cap: 1.0,
             configs_checked: 0,
+            max_samples: MAX_SAMPLES,
             gaps: Gaps::default(),
         }
     }
@@ -266,22 +278,48 @@ impl Checker {
             // samples may skip to its end (or as far as c allows past it). The nearest track
             // in time sets the step; a track far away no longer does, however fast.
             let until = self.relief.map_or(t, |r| r.1) - t;
-            let mut step = MAX_STEP_S;
-            let mut m = mask;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let v = closing[i];
-                if v <= 1e-9 {
-                    continue;
+            let mut step = self.next_step(mask, &closing, floor, until);
+            if step < REFRESH_STEP_S {
+                // The stretch's speeds bound every track over all of it; one fast only
+                // somewhere (a problem obstacle's fast leg) would space every sample that
+                // tightly. Bound the speeds from this sample to the stretch's end instead
+                // (still an upper bound over the next step).
+                let mut m = mask;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    closing[i] = world.speed_within(i, t, t1c) + v_arm;
                 }
-                let c = self.gaps.gap[i];
-                let free = if (c - floor) / v < until { (c - floor) / v } else { until.max(c / v) };
-                step = step.min(free.max(0.0) + self.delta / v);
+                step = self.next_step(mask, &closing, floor, until);
+            }
+            if out.samples >= self.max_samples {
+                // Not verified within the samples a check may take: not clear.
+                out.ok = false;
+                out.t_fail = t;
+                return out;
             }
             t = (t + step).min(t1c);
         }
         out
+    }
+
+    /// The step to the next sample of [`Checker::check_motion`] (its conservative advancement)
+    /// from each track's gap at the last sample and its closing speed.
+    fn next_step(&self, mask: u64, closing: &[f64; MAX_TRACKS], floor: f64, until: f64) -> f64 {
+        let mut step = MAX_STEP_S;
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let v = closing[i];
+            if v <= 1e-9 {
+                continue;
+            }
+            let c = self.gaps.gap[i];
+            let free = if (c - floor) / v < until { (c - floor) / v } else { until.max(c / v) };
+            step = step.min(free.max(0.0) + self.delta / v);
+        }
+        step
     }
 
     /// One sample of [`Checker::check_motion`] at time `t`: the arm at `q` (posed anew; `None`:
@@ -322,6 +360,10 @@ impl Checker {
 
 /// The longest step between two samples of a check, s.
 const MAX_STEP_S: f64 = 0.5;
+/// Steps shorter than this refresh the tracks' speed bounds from the sample on, s.
+const REFRESH_STEP_S: f64 = 1e-4;
+/// The most samples one check takes by default ([`Checker::max_samples`]).
+pub const MAX_SAMPLES: u32 = 200_000;
 
 /// A sphere holding every capsule (centre: the mean of their centres).
 fn bounding_sphere(caps: &[PosedCapsule]) -> ([f64; 3], f64) {

@@ -255,9 +255,10 @@ impl WorldInTime {
     }
 
     /// The largest surface speed (incl. σ growth) of track `i` over `[t0, t1]`, m/s: the
-    /// largest of the intervals between its poses that overlap the window (before the first
-    /// pose: the first interval's; past the last: the last interval's plus the extrapolated
-    /// σ growth). At most [`WorldInTime::max_speed`].
+    /// largest of the intervals between its poses that overlap the window (a forecast track
+    /// before its first pose: the first interval's; past the last: the last interval's plus
+    /// the extrapolated σ growth; a problem obstacle stands still outside its poses: 0 for a
+    /// window wholly before the first or after the last). At most [`WorldInTime::max_speed`].
     pub fn speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
         speed_within(&self.tracks[i], t0, t1)
     }
@@ -496,6 +497,10 @@ fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
     let n = tr.poses.len();
     if n < 2 {
         return tr.speed;
+    }
+    // A problem obstacle stands still before its first pose and after its last.
+    if tr.after == After::Hold && (t0 >= tr.poses[n - 1].t || t1 <= tr.poses[0].t) {
+        return 0.0;
     }
     let (ka, kb) = (interval_of(tr, t0), interval_of(tr, t1.max(t0)));
     let mut v = tr.speeds[ka..=kb].iter().fold(0.0f64, |m, &x| m.max(x));

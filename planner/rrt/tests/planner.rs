@@ -490,9 +490,12 @@ fn the_broad_phase_never_sets_aside_a_track_that_comes_near() {
                 }
             }
         }
+        // Held tracks stand still past their last pose (4 s): a window wholly after it may have
+        // speed 0.
+        let moving = t0 < 4.0 || round % 2 == 1;
         for i in 0..w.len() {
             if mask >> i & 1 == 1 {
-                assert!(v > 0.0 && v <= w.max_speed() + 1e-12);
+                assert!((v > 0.0 || !moving) && v <= w.max_speed() + 1e-12, "round {round}: {v}");
             }
         }
     }

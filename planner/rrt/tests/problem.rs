@@ -514,3 +514,55 @@ fn a_plan_as_early_as_the_direct_motion_ends_the_search() {
     let sol = solve_default(&blocked);
     assert!(sol.solved && sol.plan_time_s >= blocked.time_limit_s, "{} s", sol.plan_time_s);
 }
+
+#[test]
+fn a_fast_leg_over_before_a_motion_does_not_slow_its_check() {
+    // An obstacle that comes in from 10⁶ m at 10⁶ m/s and stops 3 m off the arm at 1 s: a
+    // bound on its speed over the whole of a motion made every sample after 1 s about
+    // 3·10⁻⁸ s apart (a check of seconds: millions of samples). After its last pose it stands
+    // still, and the check bounds its speed from where it samples: a few hundred samples.
+    let mut p = problem(START, GOAL, [1e6, 0.5, 0.5], 0.1);
+    p.obstacles[0].poses.push(ProblemPose { t: 1.0, p: [3.0, 0.5, 0.5], q: [1.0, 0.0, 0.0, 0.0] });
+    p.time_limit_s = 5.0;
+    let sol = solve_default(&p);
+    assert!(sol.solved, "{:?}", sol.why);
+    assert!(sol.configs_checked < 20_000, "{} configurations", sol.configs_checked);
+}
+
+#[test]
+fn a_check_needing_more_samples_than_its_cap_is_not_clear() {
+    // A sphere sweeping 2·10⁶ m back and forth past the arm (a few tenths of a metre from it)
+    // every 0.1 s (2·10⁷ m/s).
+    let c = link4_at(&START);
+    let mut ch = Checker::new(ArmModel::default_arm(), &default_limits().v_max, 0.03);
+    let pose = |p: [f64; 3]| TimedPose { t: 0.0, p, q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 };
+    // The sweep's line, as a long capsule along x: its clearance from the arm.
+    let dz = [0.4, 0.6, 0.8, 1.0, 1.2]
+        .into_iter()
+        .find(|dz| {
+            let mut line = WorldInTime::new(0.0);
+            let d = dkrrt_msg::DebrisShape::capsule(50.0, 0.05);
+            let along_x = [std::f64::consts::FRAC_1_SQRT_2, 0.0, std::f64::consts::FRAC_1_SQRT_2, 0.0];
+            let mut p = pose([c[0], c[1], c[2] + dz]);
+            p.q = along_x;
+            line.push_track(0, d, &[p], After::Hold).unwrap();
+            let m = ch.clearance_at(&line, &START, 0.0, 0.0, f64::NEG_INFINITY);
+            m > 0.05 && m < 0.9 * ch.cap
+        })
+        .expect("a sweep line near the arm and clear of it");
+    let mut w = WorldInTime::new(0.0);
+    let poses: Vec<TimedPose> = (0..50)
+        .map(|k| {
+            let x = if k % 2 == 0 { c[0] - 1e6 } else { c[0] + 1e6 };
+            TimedPose { t: 0.1 * k as f64, ..pose([x, c[1], c[2] + dz]) }
+        })
+        .collect();
+    w.push_track(0, dkrrt_msg::DebrisShape::sphere(0.05), &poses, After::Hold).unwrap();
+    // Conservative advancement samples densely only around each pass: the rest is clear.
+    let r = ch.check(&w, 0.0, 4.0, 10.0, false, |_| START);
+    assert!(r.ok && r.samples > 200, "{r:?}");
+    // With a cap below what it needs, the check gives up: not clear.
+    ch.max_samples = 100;
+    let r = ch.check(&w, 0.0, 4.0, 10.0, false, |_| START);
+    assert!(!r.ok && r.samples == 100, "{r:?}");
+}
