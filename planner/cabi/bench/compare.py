@@ -115,6 +115,9 @@ if a.seeds > 1:
     files = []
     for p in problems:
         doc = json.load(open(p))
+        # The copies live elsewhere: a URDF named relative to the problem file is made absolute.
+        if doc.get("urdf") and not os.path.isabs(doc["urdf"]):
+            doc["urdf"] = os.path.abspath(os.path.join(os.path.dirname(p), doc["urdf"]))
         for k in range(1, a.seeds + 1):
             doc["seed"] = k
             f = os.path.join(tmp, f"{os.path.splitext(os.path.basename(p))[0]}.seed{k}.json")
@@ -164,3 +167,6 @@ names = ["dkrrt"] + ["ompl-" + p for p in planners]
 table(rows, names, sorted(still), lambda f: origin[f])
 if a.json:
     json.dump(list(rows.values()), open(a.json, "w"), indent=1)
+if a.seeds > 1:
+    import shutil
+    shutil.rmtree(tmp, ignore_errors=True)
