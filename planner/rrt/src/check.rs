@@ -221,6 +221,17 @@ impl Checker {
         self.poser.max_point_speed(speed).min(self.arm_speed)
     }
 
+    /// The sphere (centre, radius) holding every arm point at any configuration.
+    pub fn reach(&self) -> ([f64; 3], f64) {
+        self.reach
+    }
+
+    /// The speed bound of any arm point when joint `j` moves at most at `speed[j]` (rad/s):
+    /// `Σ_j speed[j] · lever_j`, whatever the joint speed limits.
+    pub fn point_speed(&self, speed: &[f64; NJ]) -> f64 {
+        self.poser.max_point_speed(speed)
+    }
+
     /// [`Checker::check`] of a motion no point of which moves faster than `v_arm` m/s (`None`:
     /// a rest). The samples are spaced by `δ / (v_arm + V_obs)` (the module docs), and the
     /// broad phase holds the arm in its start pose's bounding sphere grown by `v_arm` times

@@ -334,16 +334,135 @@ impl Prepared {
             ok = check_message(&mut self.planner, &self.world, out, 0.0, end).0;
             self.planner.checker = coarse;
         }
-        let mut m = f64::INFINITY;
         let cap = std::mem::replace(&mut self.planner.checker.cap, 100.0);
-        let mut t = 0.0;
-        while t <= end {
-            let q = out.sample(t).p;
-            m = m.min(self.planner.checker.clearance_at(&self.world, &q, t, 0.0, f64::NEG_INFINITY));
-            t += 1e-3;
-        }
+        let m = self.min_clearance_on_grid(out, end);
         self.planner.checker.cap = cap;
         (ok && m >= 0.0, m)
+    }
+}
+
+impl Prepared {
+    /// The smallest clearance of `out` at the times `k` ms, `0 ≤ k ms ≤ end` — exactly the
+    /// minimum over that grid, without measuring every point of it: the clearance changes no
+    /// faster than `L` = the arm's speed bound (from its joints' speed peaks over the stretch)
+    /// plus the fastest obstacle's (over the stretch),
+    /// so between grid points `a < b` it stays above `(c(a) + c(b) − L (b − a)) / 2` (at the
+    /// cap when no obstacle comes within the cap of the arm's reach over the stretch); a
+    /// stretch whose bound is not below the smallest clearance found so far cannot lower it
+    /// and is left unmeasured. Stretches are split at their middle, lowest bound first. Joint
+    /// limits (a configuration outside them counts as clearance −1) are checked at every grid
+    /// point. A 156 s plan among 32 obstacles: 1.2 s with every point measured (156 000
+    /// configurations), test `the_final_check_finds_the_grid_minimum_measuring_few_points`.
+    fn min_clearance_on_grid(&mut self, out: &Trajectory, end: f64) -> f64 {
+        const DT: f64 = 1e-3;
+        let last = (end / DT + 1e-9).floor().max(0.0) as u64;
+        let at = |k: u64| (k as f64 * DT).min(end);
+        if !within_limits(out, self.model.limits()) {
+            return -1.0;
+        }
+        let n = self.world.len();
+        // The point speed bound is linear in the joint speeds: each joint's lever, once.
+        let lever: [f64; NJ] = std::array::from_fn(|j| {
+            let mut e = [0.0; NJ];
+            e[j] = 1.0;
+            self.planner.checker.point_speed(&e)
+        });
+        let rate = |a: f64, b: f64| {
+            let peaks = crate::replan::message_speed_peaks(out, a, b);
+            (0..NJ).map(|j| peaks[j] * lever[j]).sum::<f64>()
+                + (0..n).map(|i| self.world.speed_within(i, a, b)).fold(0.0, f64::max)
+        };
+        let (reach, cap) = (self.planner.checker.reach(), self.planner.checker.cap);
+        let (checker, world) = (&mut self.planner.checker, &self.world);
+        let mut measure = |k: u64| {
+            let t = at(k);
+            checker.clearance_at(world, &out.sample(t).p, t, 0.0, f64::NEG_INFINITY)
+        };
+        let (c0, c1) = (measure(0), measure(last));
+        let mut m = c0.min(c1);
+        // (bound, first, last, c(first), c(last)), lowest bound first.
+        let mut open = std::collections::BinaryHeap::new();
+        // No obstacle within the cap of the arm's reach over the stretch: the cap throughout.
+        let (centre, reach) = (reach.0, reach.1 + cap);
+        let bound = |a: u64, b: u64, ca: f64, cb: f64| {
+            let (ta, tb) = (at(a), at(b));
+            if self.world.near(ta, tb, &centre, reach, 0.0).0 == 0 {
+                return cap;
+            }
+            0.5 * (ca + cb - rate(ta, tb) * (tb - ta))
+        };
+        if last > 1 {
+            open.push(Stretch(bound(0, last, c0, c1), 0, last, c0, c1));
+        }
+        while let Some(Stretch(lb, a, b, ca, cb)) = open.pop() {
+            if lb >= m {
+                break; // no stretch left can hold a lower clearance
+            }
+            let k = a + (b - a) / 2;
+            let ck = measure(k);
+            m = m.min(ck);
+            for (x, y, cx, cy) in [(a, k, ca, ck), (k, b, ck, cb)] {
+                if y - x > 1 {
+                    open.push(Stretch(bound(x, y, cx, cy), x, y, cx, cy));
+                }
+            }
+        }
+        m
+    }
+}
+
+/// Whether every joint of `out` stays within `l` (to 1e-9 rad) at every time, not only at
+/// the grid's: each constant-jerk segment's ends and its turning points (where its speed is
+/// 0) are its extremes.
+fn within_limits(out: &Trajectory, l: &dkrrt_model::JointLimits) -> bool {
+    use dkrrt_msg::MAX_SEGMENTS;
+    let end = out.duration_s.max(0.0);
+    (0..NJ).all(|j| {
+        let n = (out.n_seg[j] as usize).clamp(1, MAX_SEGMENTS);
+        let ok = |t: f64| {
+            let q = out.sample_joint(j, t).0;
+            q.is_finite() && q >= l.q_min[j] - 1e-9 && q <= l.q_max[j] + 1e-9
+        };
+        (0..n).all(|k| {
+            let s = &out.seg[j][k];
+            let t0 = s.t0.clamp(0.0, end);
+            let t1 = if k + 1 < n { out.seg[j][k + 1].t0.clamp(t0, end) } else { end };
+            // v + a τ + j τ²/2 = 0 for τ in (0, t1 − t0).
+            let (a2, b, c) = (0.5 * s.j, s.a, s.v);
+            let mut roots = [f64::NAN; 2];
+            if a2.abs() > 1e-300 {
+                let d = b * b - 4.0 * a2 * c;
+                if d >= 0.0 {
+                    let r = d.sqrt();
+                    roots = [(-b - r) / (2.0 * a2), (-b + r) / (2.0 * a2)];
+                }
+            } else if b.abs() > 1e-300 {
+                roots[0] = -c / b;
+            }
+            ok(t0) && ok(t1) && roots.iter().all(|&r| !(r > 0.0 && t0 + r < t1) || ok(t0 + r))
+        })
+    })
+}
+
+/// A stretch of the final check's grid: (lower bound, first, last, clearances at both ends);
+/// ordered so that a max-heap pops the lowest bound first (NaN bounds first: measured).
+struct Stretch(f64, u64, u64, f64, f64);
+
+impl PartialEq for Stretch {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Stretch {}
+impl PartialOrd for Stretch {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Stretch {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        let key = |x: f64| if x.is_nan() { f64::NEG_INFINITY } else { x };
+        key(o.0).total_cmp(&key(self.0)).then(o.1.cmp(&self.1))
     }
 }
 
@@ -356,12 +475,41 @@ pub fn solve(
     a_max: [f64; NJ],
     j_max: [f64; NJ],
 ) -> Result<Solution, ProblemError> {
+    let t_start = std::time::Instant::now();
     let mut prep = Prepared::new(p, model, v_default, a_max, j_max)?;
     let (start_clear, goal_clear, horizon) = (prep.start_clear, prep.goal_clear, prep.horizon);
+    let mut sol = Solution {
+        solved: false,
+        first_solution_s: None,
+        first_solution_configs: None,
+        configs_checked: 0,
+        plan_time_s: 0.0,
+        iterations: 0,
+        path: Vec::new(),
+        times_s: Vec::new(),
+        trajectory: Vec::new(),
+        duration_s: 0.0,
+        path_length_rad: 0.0,
+        min_clearance_m: None,
+        why: None,
+    };
+    // A start in collision at t = 0, or a goal in collision from the last pose on (where
+    // every plan rests), fails every plan's final check: no search.
+    let in_collision = if start_clear < 0.0 {
+        Some(format!("the start is in collision at t = 0 (clearance {start_clear:.3} m)"))
+    } else if goal_clear < 0.0 {
+        Some(format!("the goal is in collision from t = {horizon:.2} s on (clearance {goal_clear:.3} m)"))
+    } else {
+        None
+    };
+    if in_collision.is_some() {
+        sol.why = in_collision;
+        sol.plan_time_s = t_start.elapsed().as_secs_f64();
+        return Ok(sol);
+    }
     let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut best = Box::new(<Trajectory as Zeroed>::zeroed());
     let mut waypoints: Vec<([f64; NJ], f64)> = Vec::new();
-    let t_start = std::time::Instant::now();
     let limit = p.time_limit_s;
     let req = Request { start: KinState::rest(p.start), t0: 0.0, goal: p.goal };
     let (mut arrival, mut first_solution_s, mut iterations, mut rounds) = (f64::MAX, None, 0u32, 0u32);
@@ -438,33 +586,16 @@ pub fn solve(
     let out = best;
     let plan_time_s = t_start.elapsed().as_secs_f64();
     let solved = first_solution_s.is_some();
-    let mut sol = Solution {
-        solved,
-        first_solution_s: None,
-        first_solution_configs: first_configs,
-        configs_checked: prep.planner.checker.configs_checked - configs0,
-        plan_time_s,
-        iterations,
-        path: Vec::new(),
-        times_s: Vec::new(),
-        trajectory: Vec::new(),
-        duration_s: 0.0,
-        path_length_rad: 0.0,
-        min_clearance_m: None,
-        why: None,
-    };
-    let in_collision = if start_clear < 0.0 {
-        Some(format!("the start is in collision at t = 0 (clearance {start_clear:.3} m)"))
-    } else if goal_clear < 0.0 {
-        Some(format!("the goal is in collision from t = {horizon:.2} s on (clearance {goal_clear:.3} m)"))
-    } else {
-        None
-    };
+    sol.first_solution_configs = first_configs;
+    sol.configs_checked = prep.planner.checker.configs_checked - configs0;
+    sol.plan_time_s = plan_time_s;
+    sol.iterations = iterations;
     if !solved {
-        sol.why = in_collision.or(Some(format!(
+        sol.first_solution_configs = None;
+        sol.why = Some(format!(
             "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees)",
             if connect { "RRT-Connect, then " } else { "" }
-        )));
+        ));
         return Ok(sol);
     }
     sol.first_solution_s = first_solution_s;
@@ -492,7 +623,11 @@ pub fn solve(
     sol.min_clearance_m = Some(m);
     sol.solved = ok && m >= 0.0;
     if !sol.solved {
-        sol.why = in_collision.or(Some(format!("the plan's check every 1 ms failed (clearance {m:.3} m)")));
+        // Not a solution: the plan stays in the output (path, trajectory, clearance) for a
+        // look, but no first solution is claimed.
+        sol.first_solution_s = None;
+        sol.first_solution_configs = None;
+        sol.why = Some(format!("the plan's final check failed (clearance {m:.3} m)"));
     }
     Ok(sol)
 }
