@@ -110,6 +110,22 @@ pub enum AttitudeLifting {
     Deep(Box<DeepLifting>),
 }
 
+impl AttitudeLifting {
+    /// [`Lifting::lift`], the deep lifting compiled for AVX2 where the CPU has it (the same
+    /// operations in the same order: bit-identical, `kernels::tests::deep_lift_equals_reference_bitwise`).
+    #[inline]
+    pub fn lift_fast(&self, x: &[f64], out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if let AttitudeLifting::Deep(l) = self {
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 checked at run time just above.
+                return unsafe { kernels::avx2::deep_lift(l, x, out) };
+            }
+        }
+        self.lift(x, out)
+    }
+}
+
 impl Lifting for AttitudeLifting {
     fn state_dim(&self) -> usize {
         match self {

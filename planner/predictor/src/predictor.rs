@@ -809,7 +809,7 @@ impl DebrisPredictor {
                 xh = out;
             } else {
                 m.trans_lift.lift(&xp[TRANS], &mut self.phi_t);
-                m.att_lift.lift(&xp[ROT], &mut self.phi_a);
+                m.att_lift.lift_fast(&xp[ROT], &mut self.phi_a);
                 tr.trans.step_rows(6, &self.phi_t, &[], &mut xh[TRANS]);
                 tr.att.step_rows(7, &self.phi_a, &[], &mut xh[ROT]);
             }
@@ -857,7 +857,7 @@ impl DebrisPredictor {
                 if !att_measured {
                     // No attitude was measured: nothing to learn from.
                 } else if m.att_rollout == Rollout::Linear {
-                    m.att_lift.lift(&ya, &mut self.phi_a_next);
+                    m.att_lift.lift_fast(&ya, &mut self.phi_a_next);
                     tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &self.phi_a_next[..m.att.p]);
                 } else {
                     tr.rls_a.update_model(&mut tr.att, &self.phi_a[..m.att.p], &ya);
