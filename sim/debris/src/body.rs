@@ -201,22 +201,35 @@ pub fn attitude_rk4(
     h: f64,
 ) {
     let (i, ii) = (&props.inertia, &props.inv_inertia);
+    // A body in its principal axes (every shape but a convex piece's): Euler's equation on the
+    // diagonals alone, the same values as the full products (their other terms are exact zeros).
+    let diag = |m: &Matrix3<f64>| (0..3).all(|r| (0..3).all(|c| r == c || m[(r, c)] == 0.0));
+    let principal = diag(i) && diag(ii);
+    let (di, dii) = (i.diagonal(), ii.diagonal());
+    let rhs = |w: &Vector3<f64>| {
+        if principal {
+            let c = -w.cross(&di.component_mul(w));
+            dii.component_mul(&c)
+        } else {
+            euler_rhs(i, ii, w)
+        }
+    };
     let q0 = *q.quaternion();
     let w0 = *w;
     let kq1 = quat_rhs(&q0, &w0, frame_rate[0]);
-    let kw1 = euler_rhs(i, ii, &w0);
+    let kw1 = rhs(&w0);
     let q2 = q0 + kq1 * (0.5 * h);
     let w2 = w0 + kw1 * (0.5 * h);
     let kq2 = quat_rhs(&q2, &w2, frame_rate[1]);
-    let kw2 = euler_rhs(i, ii, &w2);
+    let kw2 = rhs(&w2);
     let q3 = q0 + kq2 * (0.5 * h);
     let w3 = w0 + kw2 * (0.5 * h);
     let kq3 = quat_rhs(&q3, &w3, frame_rate[1]);
-    let kw3 = euler_rhs(i, ii, &w3);
+    let kw3 = rhs(&w3);
     let q4 = q0 + kq3 * h;
     let w4 = w0 + kw3 * h;
     let kq4 = quat_rhs(&q4, &w4, frame_rate[2]);
-    let kw4 = euler_rhs(i, ii, &w4);
+    let kw4 = rhs(&w4);
     let qn = q0 + (kq1 + kq2 * 2.0 + kq3 * 2.0 + kq4) * (h / 6.0);
     *w = w0 + (kw1 + kw2 * 2.0 + kw3 * 2.0 + kw4) * (h / 6.0);
     *q = UnitQuaternion::new_normalize(qn);
