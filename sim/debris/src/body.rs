@@ -206,10 +206,14 @@ pub fn attitude_rk4(
     let diag = |m: &Matrix3<f64>| (0..3).all(|r| (0..3).all(|c| r == c || m[(r, c)] == 0.0));
     let principal = diag(i) && diag(ii);
     let (di, dii) = (i.diagonal(), ii.diagonal());
+    #[inline(always)]
+    fn principal_rhs(di: &Vector3<f64>, dii: &Vector3<f64>, w: &Vector3<f64>) -> Vector3<f64> {
+        let c = -w.cross(&di.component_mul(w));
+        dii.component_mul(&c)
+    }
     let rhs = |w: &Vector3<f64>| {
         if principal {
-            let c = -w.cross(&di.component_mul(w));
-            dii.component_mul(&c)
+            principal_rhs(&di, &dii, w)
         } else {
             euler_rhs(i, ii, w)
         }

@@ -93,15 +93,27 @@ fn an_object_stepped_alone_moves_exactly_as_in_the_whole_world() {
             w
         })
         .collect();
+    // And stepped alone for its position only (attitudes held, but for the split's parent).
+    let mut moving: Vec<DebrisWorld> = alone.clone();
+    moving.iter_mut().for_each(|w| w.set_translation_only(true));
     let start = whole.debris().to_vec();
     while whole.time() < 16.0 {
         whole.step(0.01);
         alone.iter_mut().for_each(|w| w.step(0.01));
+        moving.iter_mut().for_each(|w| w.step(0.01));
     }
     assert_eq!(whole.events_fired(), 2);
-    for (id, w) in ids.iter().zip(&alone) {
+    for ((id, w), m) in ids.iter().zip(&alone).zip(&moving) {
         let (i, j) = (whole.index_of(*id).unwrap(), w.index_of(*id).unwrap());
         assert_eq!(whole.debris()[i].state, w.debris()[j].state, "object {id}");
+        let (a, b) = (&whole.debris()[i].state, &m.debris()[m.index_of(*id).unwrap()].state);
+        assert_eq!((a.p, a.v), (b.p, b.v), "object {id}, translation only");
+        let split = matches!(
+            s.events.iter().find(|e| matches!(e, EventSpec::Split { id: x, .. } if x == id)),
+            Some(_)
+        );
+        let b0 = start.iter().find(|d| d.id == *id).unwrap().state.q;
+        assert_eq!(b.q, if split { a.q } else { b0 }, "object {id}: attitude stepped only for a split");
         assert_eq!(whole.debris()[i].props.mass, w.debris()[j].props.mass, "object {id}");
         assert_eq!(w.events_fired(), 2);
         // The others stood still (but for what the events did to them).

@@ -399,6 +399,7 @@ fn shoot(
         let mut w = DebrisWorld::new(scene).map_err(|e| e.to_string())?;
         // Only the object's own motion matters here: step it alone (exactly as in the whole).
         w.set_only(Some(id));
+        w.set_translation_only(true);
         let n = (t_hit / 0.01).round().max(1.0) as usize;
         for _ in 0..n {
             w.step(t_hit / n as f64);
