@@ -158,7 +158,7 @@ impl DebrisSide {
             let qq = d.state.q.quaternion();
             let o = Obstacle::from_shape(
                 d.id,
-                d.props.shape.clone(),
+                &d.props.shape,
                 d.props.bounding_radius,
                 &p,
                 &[qq.w, qq.i, qq.j, qq.k],

@@ -230,7 +230,7 @@ impl Obstacle {
     /// An exact parry3d shape at a pose (`bound`: its bounding radius about `p`). Balls,
     /// cuboids and capsules along the local z axis centred on the origin are measured in
     /// closed form (the same geometry), other shapes through parry3d.
-    pub fn from_shape(id: u32, shape: SharedShape, bound: f64, p: &[f64; 3], q: &[f64; 4]) -> Self {
+    pub fn from_shape(id: u32, shape: &SharedShape, bound: f64, p: &[f64; 3], q: &[f64; 4]) -> Self {
         let geom = if let Some(b) = shape.as_ball() {
             Geom::Sphere { r: b.radius }
         } else if let Some(c) = shape.as_cuboid() {
@@ -242,7 +242,9 @@ impl Obstacle {
         }) {
             Geom::Capsule { half_length: c.segment.b.z.abs(), r: c.radius }
         } else {
-            Geom::Shape(shape)
+            // Only a general shape keeps the shared shape (a reference count; the primitives
+            // are copied out of it, so posing them every tick touches no count).
+            Geom::Shape(shape.clone())
         };
         Obstacle { id, geom, p: *p, q: *q, bound, inflate: 0.0, ball_p: *p, ball_r: f64::INFINITY }
     }

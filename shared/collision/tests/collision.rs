@@ -197,7 +197,7 @@ fn descriptors_enclose_the_exact_shapes() {
             v.map(|x| x / n)
         };
         let p = [rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5)];
-        let exact = Obstacle::from_shape(1, hull.clone(), 1.0, &p, &q);
+        let exact = Obstacle::from_shape(1, &hull, 1.0, &p, &q);
         let boxed = Obstacle::from_desc(1, &desc, 0.0, &p, &q, 0.0);
         let c = link();
         assert!(boxed.distance(&c) <= exact.distance(&c) + 1e-9);
@@ -382,7 +382,7 @@ fn posing_and_checking_allocate_nothing() {
             if obs.len() == 32 {
                 obs.pop();
             }
-            obs.push(Obstacle::from_shape(99, hull.clone(), 0.3, &[1.0, 0.5, 0.2], &ID));
+            obs.push(Obstacle::from_shape(99, &hull, 0.3, &[1.0, 0.5, 0.2], &ID));
             let q = [0.001 * k as f64; NJ];
             poser.pose(&q, &mut caps);
             std::hint::black_box(proximity(&caps, &obs, 0.0, &mut contacts));

@@ -184,7 +184,7 @@ fn rotated_box_distance_uses_attitude() {
     let q = d.state.q.quaternion();
     let o = dkrrt_collision::Obstacle::from_shape(
         d.id,
-        d.props.shape.clone(),
+        &d.props.shape,
         d.props.bounding_radius,
         &[0.0; 3],
         &[q.w, q.i, q.j, q.k],

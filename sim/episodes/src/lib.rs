@@ -441,7 +441,7 @@ fn rest_clearance(
             let q = d.state.q.quaternion();
             obs.push(Obstacle::from_shape(
                 d.id,
-                d.props.shape.clone(),
+                &d.props.shape,
                 d.props.bounding_radius,
                 &[d.state.p.x, d.state.p.y, d.state.p.z],
                 &[q.w, q.i, q.j, q.k],

@@ -41,7 +41,7 @@ fn min_distance(e: &Episode, t_end: f64, q_of: impl Fn(f64) -> [f64; NJ]) -> f64
                 let q = d.state.q.quaternion();
                 Obstacle::from_shape(
                     d.id,
-                    d.props.shape.clone(),
+                    &d.props.shape,
                     d.props.bounding_radius,
                     &[d.state.p.x, d.state.p.y, d.state.p.z],
                     &[q.w, q.i, q.j, q.k],
