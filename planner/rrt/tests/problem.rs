@@ -587,6 +587,20 @@ fn a_check_needing_more_samples_than_its_cap_is_not_clear() {
     assert!(!r.ok && r.samples == 100, "{r:?}");
 }
 
+/// The final check of `p`'s straight motion from `START` to `TURNED`: the prepared problem,
+/// the timed motion, (passed, smallest clearance) and the configurations it measured.
+fn verify_straight(p: &Problem) -> (problem::Prepared, Box<Trajectory>, (bool, f64), u64) {
+    let lim = default_limits();
+    let mut prep =
+        problem::Prepared::new(p, ArmModel::default_arm(), lim.v_max, lim.a_max, lim.j_max).unwrap();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    prep.time_path(&[START, TURNED], &mut out).expect("timed");
+    let before = prep.planner.checker.configs_checked;
+    let v = prep.verify(&out);
+    let measured = prep.planner.checker.configs_checked - before;
+    (prep, out, v, measured)
+}
+
 #[test]
 fn the_final_check_finds_the_grid_minimum_measuring_few_points() {
     // Static clutter and obstacles sweeping through the arm's workspace: the final check's
@@ -615,13 +629,7 @@ fn the_final_check_finds_the_grid_minimum_measuring_few_points() {
             });
         }
         p.validate().unwrap();
-        let mut prep =
-            problem::Prepared::new(&p, ArmModel::default_arm(), lim.v_max, lim.a_max, lim.j_max).unwrap();
-        let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
-        prep.time_path(&[START, TURNED], &mut out).expect("timed");
-        let before = prep.planner.checker.configs_checked;
-        let (_, m) = prep.verify(&out);
-        let measured = prep.planner.checker.configs_checked - before;
+        let (prep, out, (_, m), measured) = verify_straight(&p);
         let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
         ch.cap = 100.0;
         let end = out.duration_s + 1.0;
@@ -640,14 +648,7 @@ fn the_final_check_finds_the_grid_minimum_measuring_few_points() {
     }
     // Nothing within the clearance cap (100 m) of the arm: the cap, from a few measurements
     // (its bound alone never prunes a stretch whose ends are both at the minimum).
-    let p = problem(START, TURNED, [300.0, 0.0, 0.0], 0.2);
-    let mut prep =
-        problem::Prepared::new(&p, ArmModel::default_arm(), lim.v_max, lim.a_max, lim.j_max).unwrap();
-    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
-    prep.time_path(&[START, TURNED], &mut out).expect("timed");
-    let before = prep.planner.checker.configs_checked;
-    let (ok, m) = prep.verify(&out);
-    let measured = prep.planner.checker.configs_checked - before;
+    let (_, out, (ok, m), measured) = verify_straight(&problem(START, TURNED, [300.0, 0.0, 0.0], 0.2));
     assert!(ok && m == 100.0, "{m}");
     assert!(measured < 100, "{measured} configurations for {} s", out.duration_s);
 }
