@@ -52,7 +52,8 @@ fn euler_coefficients(i: &[f64; 3]) -> [f64; 3] {
 fn deriv(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64) -> ([f64; 4], [f64; 3]) {
     let qw = quat_mul(q, &[0.0, w[0], w[1], w[2]]);
     let nq = quat_mul(&[0.0, 0.0, 0.0, n], q);
-    let dq = [0, 1, 2, 3].map(|k| 0.5 * (qw[k] - nq[k]));
+    // Written out, not `array::map` (left as a call in this hot loop: the same arithmetic).
+    let dq = [0.5 * (qw[0] - nq[0]), 0.5 * (qw[1] - nq[1]), 0.5 * (qw[2] - nq[2]), 0.5 * (qw[3] - nq[3])];
     let dw = [e[0] * w[1] * w[2], e[1] * w[2] * w[0], e[2] * w[0] * w[1]];
     (dq, dw)
 }
@@ -62,7 +63,10 @@ fn deriv(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64) -> ([f64; 4], [f64; 3
 fn step_rk4(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64, h: f64) -> ([f64; 4], [f64; 3]) {
     let (k1q, k1w) = deriv(q, w, e, n);
     let at = |s: f64, dq: &[f64; 4], dw: &[f64; 3]| {
-        ([0, 1, 2, 3].map(|k| q[k] + s * dq[k]), [0, 1, 2].map(|k| w[k] + s * dw[k]))
+        (
+            [q[0] + s * dq[0], q[1] + s * dq[1], q[2] + s * dq[2], q[3] + s * dq[3]],
+            [w[0] + s * dw[0], w[1] + s * dw[1], w[2] + s * dw[2]],
+        )
     };
     let (q2, w2) = at(0.5 * h, &k1q, &k1w);
     let (k2q, k2w) = deriv(&q2, &w2, e, n);
@@ -70,8 +74,14 @@ fn step_rk4(q: &[f64; 4], w: &[f64; 3], e: &[f64; 3], n: f64, h: f64) -> ([f64; 
     let (k3q, k3w) = deriv(&q3, &w3, e, n);
     let (q4, w4) = at(h, &k3q, &k3w);
     let (k4q, k4w) = deriv(&q4, &w4, e, n);
-    let mut qn = [0, 1, 2, 3].map(|k| q[k] + h / 6.0 * (k1q[k] + 2.0 * k2q[k] + 2.0 * k3q[k] + k4q[k]));
-    let wn = [0, 1, 2].map(|k| w[k] + h / 6.0 * (k1w[k] + 2.0 * k2w[k] + 2.0 * k3w[k] + k4w[k]));
+    let mut qn = [0.0; 4];
+    for (k, o) in qn.iter_mut().enumerate() {
+        *o = q[k] + h / 6.0 * (k1q[k] + 2.0 * k2q[k] + 2.0 * k3q[k] + k4q[k]);
+    }
+    let mut wn = [0.0; 3];
+    for (k, o) in wn.iter_mut().enumerate() {
+        *o = w[k] + h / 6.0 * (k1w[k] + 2.0 * k2w[k] + 2.0 * k3w[k] + k4w[k]);
+    }
     let nq = (qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3]).sqrt();
     qn.iter_mut().for_each(|v| *v /= nq);
     (qn, wn)
