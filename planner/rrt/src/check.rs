@@ -76,6 +76,13 @@ pub struct Checker {
     /// guarantee that a check ends, whatever the obstacles' speeds; realistic checks take a
     /// few hundred).
     pub max_samples: u32,
+    /// Checks that reached `max_samples` (not clear for that reason alone).
+    pub capped: u64,
+    /// A wall-clock time past which a check ends, not clear (looked at every
+    /// [`DEADLINE_EVERY`] samples; `None`, the default: never, so that a run is the same
+    /// whatever the machine's speed). For a search against a wall-clock time limit (`dkrrt
+    /// plan`), whose checks of very slow motions can each take a long time.
+    pub deadline: Option<std::time::Instant>,
     /// The last sample's gap per track ([`WorldInTime::obstacles_gapped`]).
     gaps: Gaps,
 }
@@ -102,6 +109,8 @@ impl Checker {
             cap: 1.0,
             configs_checked: 0,
             max_samples: MAX_SAMPLES,
+            capped: 0,
+            deadline: None,
             gaps: Gaps::default(),
         }
     }
@@ -305,6 +314,14 @@ impl Checker {
             }
             if out.samples >= self.max_samples {
                 // Not verified within the samples a check may take: not clear.
+                self.capped += 1;
+                out.ok = false;
+                out.t_fail = t;
+                return out;
+            }
+            if out.samples.is_multiple_of(DEADLINE_EVERY)
+                && self.deadline.is_some_and(|d| std::time::Instant::now() >= d)
+            {
                 out.ok = false;
                 out.t_fail = t;
                 return out;
@@ -373,6 +390,8 @@ impl Checker {
 const MAX_STEP_S: f64 = 0.5;
 /// Steps shorter than this refresh the tracks' speed bounds from the sample on, s.
 const REFRESH_STEP_S: f64 = 1e-4;
+/// A check looks at its [`Checker::deadline`] every this many samples.
+pub const DEADLINE_EVERY: u32 = 4096;
 /// The most samples one check takes by default ([`Checker::max_samples`]).
 pub const MAX_SAMPLES: u32 = 200_000;
 

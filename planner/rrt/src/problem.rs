@@ -524,6 +524,8 @@ pub fn solve(
     let direct = prep.time_path(&[p.start, p.goal], &mut out).map_or(0.0, |_| out.duration_s);
     let optimal = |arrival: f64| arrival <= direct + 1e-6;
     prep.planner.arrival_floor = direct + 1e-6;
+    // A check of a very slow motion may take long: none runs past the time limit.
+    prep.planner.checker.deadline = Some(t_start + std::time::Duration::from_secs_f64(limit));
     let configs0 = prep.planner.checker.configs_checked;
     let mut first_configs = None;
     if connect {
@@ -586,6 +588,8 @@ pub fn solve(
     }
     let out = best;
     let plan_time_s = t_start.elapsed().as_secs_f64();
+    prep.planner.checker.deadline = None;
+    let capped = prep.planner.checker.capped;
     let solved = first_solution_s.is_some();
     sol.first_solution_configs = first_configs;
     sol.configs_checked = prep.planner.checker.configs_checked - configs0;
@@ -594,8 +598,17 @@ pub fn solve(
     if !solved {
         sol.first_solution_configs = None;
         sol.why = Some(format!(
-            "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees)",
-            if connect { "RRT-Connect, then " } else { "" }
+            "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees){}",
+            if connect { "RRT-Connect, then " } else { "" },
+            if capped > 0 {
+                format!(
+                    "; {capped} motion checks needed more than the {} samples a check takes (motions too slow \
+                     to check: see v_max)",
+                    prep.planner.checker.max_samples
+                )
+            } else {
+                String::new()
+            }
         ));
         return Ok(sol);
     }

@@ -585,6 +585,18 @@ fn a_check_needing_more_samples_than_its_cap_is_not_clear() {
     ch.max_samples = 100;
     let r = ch.check(&w, 0.0, 4.0, 10.0, false, |_| START);
     assert!(!r.ok && r.samples == 100, "{r:?}");
+    assert_eq!(ch.capped, 1, "counted");
+    // A check past its wall-clock deadline (`dkrrt plan`'s time limit) ends at its next look
+    // at it, not clear: a long rest (samples at most 0.5 s apart) stops after the first
+    // stretch of samples, and without a deadline runs to its end.
+    ch.max_samples = dkrrt_rrt::check::MAX_SAMPLES;
+    ch.deadline = Some(std::time::Instant::now());
+    let r = ch.check(&w, 0.0, 5000.0, 5000.0, false, |_| START);
+    assert!(!r.ok && r.samples == dkrrt_rrt::check::DEADLINE_EVERY, "{r:?}");
+    ch.deadline = None;
+    let r = ch.check(&w, 0.0, 5000.0, 5000.0, false, |_| START);
+    assert!(r.ok && r.samples > 2 * dkrrt_rrt::check::DEADLINE_EVERY, "{r:?}");
+    assert_eq!(ch.capped, 1, "a deadline is not a cap");
 }
 
 /// The final check of `p`'s straight motion from `START` to `TURNED`: the prepared problem,
