@@ -428,19 +428,13 @@ fn within_limits(out: &Trajectory, l: &dkrrt_model::JointLimits) -> bool {
             let s = &out.seg[j][k];
             let t0 = s.t0.clamp(0.0, end);
             let t1 = if k + 1 < n { out.seg[j][k + 1].t0.clamp(t0, end) } else { end };
-            // v + a τ + j τ²/2 = 0 for τ in (0, t1 − t0).
-            let (a2, b, c) = (0.5 * s.j, s.a, s.v);
-            let mut roots = [f64::NAN; 2];
-            if a2.abs() > 1e-300 {
-                let d = b * b - 4.0 * a2 * c;
-                if d >= 0.0 {
-                    let r = d.sqrt();
-                    roots = [(-b - r) / (2.0 * a2), (-b + r) / (2.0 * a2)];
-                }
-            } else if b.abs() > 1e-300 {
-                roots[0] = -c / b;
-            }
-            ok(t0) && ok(t1) && roots.iter().all(|&r| !(r > 0.0 && t0 + r < t1) || ok(t0 + r))
+            let turns = dkrrt_otg::turning_points(
+                s.v + (t0 - s.t0) * (s.a + (t0 - s.t0) * s.j / 2.0),
+                s.a + (t0 - s.t0) * s.j,
+                s.j,
+                t1 - t0,
+            );
+            ok(t0) && ok(t1) && turns.iter().all(|&r| r.is_nan() || ok(t0 + r))
         })
     })
 }

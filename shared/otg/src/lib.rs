@@ -54,7 +54,7 @@ mod waypoints;
 
 pub use error::OtgError;
 pub use online::{Otg, Output, Status};
-pub use trajectory::{speed_peak, Extrema, Sample, Segment, Trajectory};
+pub use trajectory::{speed_peak, turning_points, Extrema, Sample, Segment, Trajectory};
 
 /// Most intermediate waypoints a single waypoint trajectory may have.
 pub const MAX_WAYPOINTS: usize = 8;

@@ -194,21 +194,8 @@ impl<const N: usize> Trajectory<N> {
             };
             for sg in self.joint_segments(j) {
                 consider(sg.p0, sg.t0);
-                // Interior zeros of v(τ) = v0 + a0 τ + jerk τ²/2.
-                let (a2, b, c) = (sg.jerk / 2.0, sg.a0, sg.v0);
-                let len = sg.t1 - sg.t0;
-                let mut roots = [f64::NAN; 2];
-                if a2 != 0.0 {
-                    let disc = b * b - 4.0 * a2 * c;
-                    if disc >= 0.0 {
-                        let q = -0.5 * (b + b.signum() * disc.sqrt());
-                        roots = [q / a2, if q != 0.0 { c / q } else { 0.0 }];
-                    }
-                } else if b != 0.0 {
-                    roots[0] = -c / b;
-                }
-                for tau in roots {
-                    if tau > 0.0 && tau < len {
+                for tau in turning_points(sg.v0, sg.a0, sg.jerk, sg.t1 - sg.t0) {
+                    if !tau.is_nan() {
                         consider(sg.state_at(sg.t0 + tau).0, sg.t0 + tau);
                     }
                 }
@@ -216,6 +203,24 @@ impl<const N: usize> Trajectory<N> {
         }
         out
     }
+}
+
+/// The times `τ ∈ (0, len)` where a constant-jerk piece turns, `v(τ) = v0 + a0 τ + jerk τ²/2 = 0`
+/// (NaN where there is none): with its ends, where its position has its extremes.
+#[inline]
+pub fn turning_points(v0: f64, a0: f64, jerk: f64, len: f64) -> [f64; 2] {
+    let (a2, b, c) = (jerk / 2.0, a0, v0);
+    let mut roots = [f64::NAN; 2];
+    if a2 != 0.0 {
+        let disc = b * b - 4.0 * a2 * c;
+        if disc >= 0.0 {
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            roots = [q / a2, if q != 0.0 { c / q } else { 0.0 }];
+        }
+    } else if b != 0.0 {
+        roots[0] = -c / b;
+    }
+    roots.map(|tau| if tau > 0.0 && tau < len { tau } else { f64::NAN })
 }
 
 /// The largest `|v(τ)|` of a constant-jerk piece over `τ ∈ [0, len]`, with
