@@ -434,6 +434,12 @@ fn run_case(exe: &Path, dir: &Path, i: usize, f: Fault, rng: &mut u64) -> Result
 
 /// Runs the matrix; prints one line per case; returns the outcomes.
 pub fn run(only: Option<&str>) -> Result<Vec<Outcome>, String> {
+    if let Some(o) = only {
+        let names: Vec<String> = cases().into_iter().map(|f| describe(f).0).collect();
+        if !names.iter().any(|n| n.contains(o)) {
+            return Err(format!("--only {o:?}: no case's name contains it (cases: {})", names.join(", ")));
+        }
+    }
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let dir = crate::launch::private_dir("faults")?;
     let mut rng = u64::from_str_radix(&crate::launch::random_hex(8), 16).unwrap_or(0x9e37_79b9_7f4a_7c15) | 1;

@@ -566,7 +566,7 @@ fn main() -> ExitCode {
             });
             // Every output path is checked before the study runs (nothing is learnt late).
             if let Some(p) = &json {
-                std::fs::write(p, "").map_err(|e| format!("--json {}: {e}", p.display()))?;
+                dkrrt::launch::check_writable(p).map_err(|e| format!("--json {}: {e}", p.display()))?;
             }
             if let Some(d) = &out {
                 std::fs::create_dir_all(d).map_err(|e| format!("--out {}: {e}", d.display()))?;

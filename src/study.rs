@@ -339,12 +339,31 @@ pub fn set_method(sc: &mut Scenario, method: &str) {
     }
 }
 
+/// Refuses a list that names an item twice (`flag` names the option): a scene or method
+/// given twice would run and count its episodes twice.
+pub fn no_repeats(flag: &str, items: &[String]) -> Result<(), String> {
+    for (i, a) in items.iter().enumerate() {
+        if items[..i].contains(a) {
+            return Err(format!("{flag}: {a:?} is given twice"));
+        }
+    }
+    Ok(())
+}
+
 /// Runs the study; rows stream to `rows_path` (JSON lines) as they finish.
 pub fn run(
     opts: &StudyOptions,
     rows_path: Option<&Path>,
     progress: bool,
 ) -> Result<(Vec<Row>, Vec<MethodFit>), String> {
+    if opts.episodes == 0 {
+        return Err("--episodes 0: a study needs at least one episode per scene".into());
+    }
+    if opts.threads == 0 {
+        return Err("--threads 0: a study needs at least one worker thread".into());
+    }
+    no_repeats("--scenes", &opts.scenes)?;
+    no_repeats("--methods", &opts.methods)?;
     for s in &opts.scenes {
         if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) {
             return Err(format!("--scenes: unknown scene {s:?} ({})", dkrrt_debris::SCENE_NAMES.join(", ")));

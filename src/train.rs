@@ -46,6 +46,7 @@ pub fn train(
         }
         opts.deep.epochs = e;
     }
+    check_outputs(out, json)?;
     let t = std::time::Instant::now();
     let m = match recorded {
         Some((files, sc)) => train_recorded(&files, &sc, &opts)?,
@@ -53,6 +54,16 @@ pub fn train(
     };
     report_and_save(&m, out, json, t.elapsed().as_secs_f64())?;
     Ok(m)
+}
+
+/// The model file and the report are written after training: paths that cannot take them
+/// are refused before it starts (nothing is learnt late).
+pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<(), String> {
+    crate::launch::check_writable(out).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    if let Some(j) = json {
+        crate::launch::check_writable(j).map_err(|e| format!("--json {}: {e}", j.display()))?;
+    }
+    Ok(())
 }
 
 /// Data from the recorded files; `origin:line` errors for bad lines.
@@ -168,13 +179,19 @@ pub fn predict_eval(
         ));
     }
     cfg.seed = seed;
+    // The rows are written at the end: a path that cannot take them is refused first.
+    if let Some(j) = json {
+        crate::launch::check_writable(j).map_err(|e| format!("--json {}: {e}", j.display()))?;
+    }
     if let Some(s) = scenes {
+        crate::study::no_repeats("--scenes", &s)?;
         for name in &s {
             dkrrt_debris::Scene::named(name).map_err(|e| format!("--scenes: {e}"))?;
         }
         cfg.scenes = s;
     }
     if let Some(ms) = methods {
+        crate::study::no_repeats("--methods", &ms)?;
         cfg.methods = ms
             .iter()
             .map(|n| {

@@ -108,6 +108,7 @@ pub fn train_visual(out: &Path, quick: bool, epochs: Option<usize>) -> Result<()
         }
         cfg.epochs = e;
     }
+    crate::train::check_outputs(out, None)?;
     let rig = cube_rig(&dkrrt_config::Scenario::default_scenario().camera);
     let scenes = dkrrt_debris::SCENE_NAMES;
     let tr = size.train_runs as u64;

@@ -215,3 +215,38 @@ fn dense_options(
         scenario: scenario.map(str::to_string),
     }
 }
+
+/// Options that cannot make a study are refused naming the option, before anything runs: no
+/// episode or no worker, and a scene or method named twice (its episodes would be run and
+/// counted twice).
+#[test]
+fn a_study_refuses_options_that_cannot_make_one() {
+    let cases: [(&[&str], &str); 4] = [
+        (&["--episodes", "0"], "--episodes"),
+        (&["--episodes", "1", "--threads", "0"], "--threads"),
+        (&["--episodes", "1", "--scenes", "dense,fast-crossing,dense"], "--scenes"),
+        (&["--episodes", "1", "--scenes", "dense", "--methods", "straight,dk-rrt,straight"], "--methods"),
+    ];
+    for (args, flag) in cases {
+        let out = Command::new(env!("CARGO_BIN_EXE_dkrrt")).arg("study").args(args).output().unwrap();
+        let (stdout, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(!out.status.success(), "{args:?}: {stdout}");
+        assert!(err.contains(flag), "{args:?}: {err}");
+        assert!(!stdout.contains("episodes x methods"), "{args:?} ran: {stdout}");
+    }
+}
+
+/// `dkrrt faults --only` matching no case is an error listing the cases, not an empty pass.
+#[test]
+fn a_fault_filter_matching_nothing_is_refused() {
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .args(["faults", "--only", "no-such-case"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--only") && err.contains("no-such-case") && err.contains("kill -9 tracker"),
+        "{err}"
+    );
+}

@@ -182,6 +182,62 @@ fn predict_eval_refuses_unknown_methods_and_scenes() {
     let out = Command::new(exe()).args(["predict-eval", "--scenes", "asteroid-belt"]).output().unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("asteroid-belt"));
+    // A scene or method named twice would be evaluated, and its rows written, twice.
+    for (flag, list) in
+        [("--scenes", "dense,sparse-slow,dense"), ("--methods", "constant-velocity,constant-velocity")]
+    {
+        let out = Command::new(exe()).args(["predict-eval", "--size", "small", flag, list]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(flag) && err.contains("twice"), "{err}");
+    }
+}
+
+/// Every output is written after the work: a path that cannot take it is refused before the
+/// work starts, naming the option, and nothing is trained or evaluated for nothing.
+#[test]
+fn outputs_that_cannot_be_written_are_refused_before_the_work() {
+    let missing = std::env::temp_dir().join(format!("dkrrt-no-such-dir-{}", std::process::id())).join("f");
+    let runs: [(&[&str], &str); 4] = [
+        (&["train", "--quick", "--out"], "--out"),
+        (&["train", "--visual", "--quick", "--out"], "--out"),
+        (
+            &[
+                "predict-eval",
+                "--size",
+                "small",
+                "--scenes",
+                "dense",
+                "--methods",
+                "constant-velocity",
+                "--json",
+            ],
+            "--json",
+        ),
+        (&["study", "--episodes", "1", "--scenes", "dense", "--methods", "straight", "--json"], "--json"),
+    ];
+    for (args, flag) in runs {
+        let out = Command::new(exe()).args(args).arg(&missing).output().unwrap();
+        let (stdout, err) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(!out.status.success(), "{args:?}: {stdout}");
+        assert!(err.contains(flag) && err.contains("dkrrt-no-such-dir"), "{args:?}: {err}");
+        // No training report, validation table, study table or progress was printed.
+        assert!(stdout.trim().is_empty(), "{args:?} worked before refusing: {stdout}");
+    }
+    // The report of a training too (its model path is fine).
+    let dir = std::env::temp_dir().join(format!("dkrrt-train-outs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("m.dkm");
+    let out = Command::new(exe())
+        .args(["train", "--quick", "--out"])
+        .arg(&model)
+        .arg("--json")
+        .arg(&missing)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--json"), "{err}");
+    assert!(!model.exists(), "the model was trained and written before the report's path was refused");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
