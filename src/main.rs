@@ -195,7 +195,7 @@ enum Cmd {
         #[arg(long)]
         out: PathBuf,
         /// Stop after this many wall-clock seconds (default: at the end of the run, or Ctrl-C).
-        #[arg(long)]
+        #[arg(long, value_parser = seconds_arg)]
         seconds: Option<f64>,
     },
     /// Train the Deep Koopman debris model on simulated debris-world data (or recorded observations) and save the model file.
@@ -360,6 +360,12 @@ enum Cmd {
         #[arg(long)]
         scenario: Option<PathBuf>,
     },
+}
+
+/// `--seconds` of `dkrrt record`, checked before the scenario is built.
+fn seconds_arg(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{s:?}: {e}"))?;
+    dkrrt_planner::record_process::check_seconds(v)
 }
 
 fn scenario(c: &Common) -> Result<Scenario, String> {

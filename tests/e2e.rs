@@ -461,6 +461,33 @@ fn a_broken_scenario_is_refused_naming_the_field() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// `dkrrt record --seconds` that is no time (NaN, infinite, zero) and `dkrrt replay` of a file
+/// that is no recording are refused naming the option or the file; neither listens to or
+/// publishes on the run first.
+#[test]
+fn record_and_replay_refuse_what_they_cannot_use() {
+    let dir = std::env::temp_dir().join(format!("dkrrt-rec-args-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for s in ["nan", "inf", "0"] {
+        let out = Command::new(exe())
+            .args(["record", "--run", "no-such-run", "--seconds", s, "--out"])
+            .arg(dir.join("o.jsonl"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("--seconds"), "{s}: {err}");
+    }
+    let notes = dir.join("notes.md");
+    std::fs::write(&notes, "# not a recording\n").unwrap();
+    let out = Command::new(exe()).args(["replay", "--run", "no-such-run"]).arg(&notes).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("notes.md") && err.contains("not an MCAP recording"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
 #[test]
 fn every_process_has_help() {
     for sub in ["launch", "sim", "tracker", "goto", "planner", "predictor", "record", "eval", "plan-problem"]

@@ -28,9 +28,21 @@ pub struct RecordReport {
     pub stopped_by_signal: bool,
 }
 
+/// A recording's wall-clock limit: a finite number of seconds > 0.
+pub fn check_seconds(s: f64) -> Result<f64, String> {
+    if s.is_finite() && s > 0.0 {
+        Ok(s)
+    } else {
+        Err(format!("{s}: must be a finite number of seconds > 0"))
+    }
+}
+
 /// Records until the end of the run, `max_wall_s` seconds, or a signal.
 pub fn run(run: &str, sc: &Scenario, out: &Path, max_wall_s: Option<f64>) -> Result<RecordReport, String> {
     signals::install();
+    if let Some(s) = max_wall_s {
+        check_seconds(s).map_err(|e| format!("record: --seconds {e}"))?;
+    }
     let lim = contract_limits(&sc.load_arm().map_err(|e| e.to_string())?);
     let file = std::fs::File::create(out).map_err(|e| format!("record: create {}: {e}", out.display()))?;
     let mut w = std::io::BufWriter::new(file);
@@ -39,7 +51,7 @@ pub fn run(run: &str, sc: &Scenario, out: &Path, max_wall_s: Option<f64>) -> Res
     let mut state_sub = bus.subscriber::<RobotState>().map_err(|e| e.to_string())?;
     let mut state = <RobotState as Zeroed>::zeroed();
     let mut rep = RecordReport::default();
-    let t_end = max_wall_s.map(|s| mono_ns() + (s.max(0.0) * 1e9) as u64);
+    let t_end = max_wall_s.map(|s| mono_ns().saturating_add((s * 1e9) as u64));
     let mut io_err = None;
     loop {
         // The end of the run first: frames published before the last state are still read.

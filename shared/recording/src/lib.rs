@@ -338,6 +338,14 @@ pub struct Recorded {
 pub fn read(path: &Path) -> Result<(Vec<Recorded>, bool), String> {
     let bytes =
         dkrrt_io::read_capped(path, MAX_RECORDING_BYTES).map_err(|e| format!("{}: {e}", path.display()))?;
+    // An interrupted recording lacks its end, never its start: a file that does not begin
+    // with the MCAP magic is not a recording (not an empty, interrupted one).
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(format!(
+            "{}: not an MCAP recording (its first bytes are not the MCAP magic)",
+            path.display()
+        ));
+    }
     let opts = mcap::read::Options::IgnoreEndMagic.into();
     let stream = mcap::MessageStream::new_with_options(&bytes, opts)
         .map_err(|e| format!("{}: {e}", path.display()))?;

@@ -111,6 +111,15 @@ fn a_recording_reads_back_and_an_interrupted_one_up_to_its_break() {
     for (a, b) in part.iter().zip(&msgs) {
         assert_eq!(a.json, b.json);
     }
+    // A file that is no recording at all (text, JSON, an empty file, a recording's tail) is
+    // an error naming it, not an empty interrupted recording.
+    let other = tmp("other.mcap");
+    for text in [&b"# notes\n"[..], b"{\"rows\": []}", b"", &bytes[8..]] {
+        std::fs::write(&other, text).unwrap();
+        let e = read(&other).unwrap_err();
+        assert!(e.contains("other.mcap") && e.contains("not an MCAP recording"), "{e}");
+    }
     let _ = std::fs::remove_file(p);
     let _ = std::fs::remove_file(cut);
+    let _ = std::fs::remove_file(other);
 }
