@@ -677,7 +677,11 @@ fn main() -> ExitCode {
                 sol.iterations,
                 sol.duration_s,
                 sol.path_length_rad,
-                sol.min_clearance_m.map_or("-".into(), |m| format!("{m:.3} m")),
+                match (sol.min_clearance_m, sol.trajectory.is_empty()) {
+                    (Some(m), _) => format!("{m:.3} m"),
+                    (None, false) => format!("- (nothing within {} m)", dkrrt_rrt::problem::MEASURED_UP_TO_M),
+                    (None, true) => "-".into(),
+                },
             );
             if let Some(why) = &sol.why {
                 eprintln!("dkrrt plan: not solved: {why}");

@@ -37,7 +37,8 @@ int dk_problem_info(const DkProblem *h, DkInfo *out);
 /* 1 clear, 0 not, -1 null argument. */
 int dk_state_clear(DkProblem *h, const double *q);
 int dk_segment_clear(DkProblem *h, const double *a, const double *b);
-/* Duration [s] of the waypoints timed as dkrrt times its own; -1 bad argument, -2 cannot be timed. */
+/* Duration [s] of the waypoints timed as dkrrt times its own; -1 bad argument, -2 cannot be timed.
+   *min_clearance_m: the smallest clearance on its 1 ms grid, INFINITY when nothing came within 100 m. */
 double dk_path_duration(DkProblem *h, const double *path, size_t n, double *min_clearance_m, int *passed);
 int dk_problem_counts(const DkProblem *h, DkCounts *out);
 

@@ -183,11 +183,14 @@ impl DkProblem {
     }
 
     /// The path (rest configurations, start to goal) timed as `dkrrt plan` times its own, and
-    /// given its final check: (duration [s], smallest clearance [m], passed); `None`: the path
-    /// could not be timed (a motion, or more motions than a message carries).
+    /// given its final check: (duration [s], smallest clearance [m], passed; the clearance is
+    /// infinite when nothing came within 100 m); `None`: the path could not be timed (a
+    /// motion, or more motions than a message carries).
     pub fn path_duration(&mut self, path: &[[f64; NJ]]) -> Option<(f64, f64, bool)> {
         self.prep.time_path(path, &mut self.out)?;
         let (ok, m) = self.prep.verify(&self.out);
+        // Nothing within the measured range: no figure, as `dkrrt plan` says (null there).
+        let m = if m < dkrrt_rrt::problem::MEASURED_UP_TO_M { m } else { f64::INFINITY };
         Some((self.out.duration_s, m, ok))
     }
 

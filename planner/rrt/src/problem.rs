@@ -220,7 +220,9 @@ pub struct Solution {
     pub trajectory: Vec<[f64; NJ + 1]>,
     pub duration_s: f64,
     pub path_length_rad: f64,
-    /// Smallest clearance along the trajectory (every 1 ms, beyond the margin), m.
+    /// Smallest clearance along the trajectory (every 1 ms, beyond the margin), m; `None`
+    /// when unsolved before a plan was made, or when nothing came within
+    /// [`MEASURED_UP_TO_M`] of the arm (no obstacles, or all far).
     pub min_clearance_m: Option<f64>,
     /// Why it is not solved, when a reason is known (printed, not in the JSON output).
     #[serde(skip)]
@@ -229,6 +231,9 @@ pub struct Solution {
 
 /// The finer δ of the final check, m, when the planner's δ rejects a plan (see [`solve`]).
 pub const FINE_DELTA_M: f64 = 0.006;
+
+/// The clearances of a problem's start, goal and final check are measured up to this, m.
+pub const MEASURED_UP_TO_M: f64 = 100.0;
 /// The finest δ a problem's start or goal near an obstacle gets, m (see [`solve`]).
 pub const MIN_DELTA_M: f64 = 0.002;
 
@@ -276,7 +281,7 @@ impl Prepared {
         let limits = Limits { v_max: p.v_max.unwrap_or(v_default), a_max, j_max };
         // Where the start and the goal stand (a reason to give when unsolved).
         let mut probe = Checker::new(model.clone(), &limits.v_max, PlannerConfig::default().delta_m);
-        probe.cap = 100.0;
+        probe.cap = MEASURED_UP_TO_M;
         let start_clear = probe.clearance_at(&world, &p.start, 0.0, 0.0, f64::NEG_INFINITY);
         let goal_clear = probe.clearance_at(&world, &p.goal, horizon, 0.0, f64::NEG_INFINITY);
         // Every sample of a check needs δ/2 of clearance, the arm at rest at the start and at
@@ -334,7 +339,7 @@ impl Prepared {
             ok = check_message(&mut self.planner, &self.world, out, 0.0, end).0;
             self.planner.checker = coarse;
         }
-        let cap = std::mem::replace(&mut self.planner.checker.cap, 100.0);
+        let cap = std::mem::replace(&mut self.planner.checker.cap, MEASURED_UP_TO_M);
         let m = self.min_clearance_on_grid(out, end);
         self.planner.checker.cap = cap;
         (ok && m >= 0.0, m)
@@ -630,7 +635,9 @@ pub fn solve(
         sol.trajectory.push(row);
     }
     let (ok, m) = prep.verify(&out);
-    sol.min_clearance_m = Some(m);
+    // Clearances are measured up to [`MEASURED_UP_TO_M`]: beyond it there is no figure to give
+    // (nothing came that near), not a clearance of exactly that much.
+    sol.min_clearance_m = (m < MEASURED_UP_TO_M).then_some(m);
     sol.solved = ok && m >= 0.0;
     if !sol.solved {
         // Not a solution: the plan stays in the output (path, trajectory, clearance) for a

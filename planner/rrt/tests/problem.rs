@@ -183,6 +183,25 @@ fn an_unsolved_problem_says_why_at_once_when_no_plan_can_pass() {
     assert!(sol.first_solution_s.is_some());
 }
 
+/// The final check's clearance is a measured figure or none: with nothing within the range
+/// it measures (no obstacle, or one 200 m away) the answer is solved with no clearance, not a
+/// clearance of exactly that range (before: `min clearance 100.000 m`).
+#[test]
+fn a_plan_with_nothing_near_has_no_clearance_figure() {
+    let far = problem(START, GOAL, [200.0, 0.0, 0.0], 0.2);
+    let mut none = far.clone();
+    none.obstacles.clear();
+    for p in [far, none] {
+        let sol = solve_default(&p);
+        assert!(sol.solved && !sol.trajectory.is_empty(), "{:?}", sol.why);
+        assert_eq!(sol.min_clearance_m, None);
+    }
+    // 30 m away: measured (the arm reaches about 1.5 m from its base).
+    let sol = solve_default(&problem(START, GOAL, [30.0, 0.0, 0.0], 0.2));
+    let m = sol.min_clearance_m.expect("a measured clearance");
+    assert!(m > 27.0 && m < problem::MEASURED_UP_TO_M, "{m}");
+}
+
 /// A static world of `n` random obstacles around the arm (seeded).
 fn clutter(seed: u64, n: u32) -> Problem {
     use rand::{Rng, SeedableRng};
