@@ -734,6 +734,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "deadline_misses": plan.get("deadline_misses"),
             "fallbacks": plan.get("fallbacks"),
             "min_predicted_clearance_m": plan.get("min_predicted_clearance_m"),
+            "clearance_measured_up_to_m": plan.get("clearance_measured_up_to_m"),
             "goal_reached_s": plan.get("goal_reached_s"),
         }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
@@ -872,9 +873,18 @@ pub fn summary(r: &Value) -> String {
         );
         s += &format!(
             "  planner              min predicted clearance {} m   goal reached at {} s\n",
-            r.pointer("/planner/min_predicted_clearance_m")
-                .and_then(Value::as_f64)
-                .map_or("n/a".into(), |v| format!("{v:.3}")),
+            r.pointer("/planner/min_predicted_clearance_m").and_then(Value::as_f64).map_or(
+                "n/a".into(),
+                |v| {
+                    // Measured up to the planner's cap: at the cap, that much or more.
+                    let cap = r.pointer("/planner/clearance_measured_up_to_m").and_then(Value::as_f64);
+                    if cap.is_some_and(|c| v >= c) {
+                        format!(">= {v:.3}")
+                    } else {
+                        format!("{v:.3}")
+                    }
+                }
+            ),
             r.pointer("/planner/goal_reached_s")
                 .and_then(Value::as_f64)
                 .map_or("never".into(), |v| format!("{v:.2}")),
@@ -1040,4 +1050,23 @@ fn run_figures(sc: &Scenario, run_dir: &Path, out: &Path) -> Result<Vec<PathBuf>
     files.extend(crate::figures::fig4(out, &t)?);
     files.extend(crate::figures::clearance(out, &t)?);
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use serde_json::json;
+
+    /// The planner's predicted clearance is measured up to its cap: at the cap the summary
+    /// says "that much or more", below it the figure.
+    #[test]
+    fn a_clearance_at_the_cap_is_printed_as_a_lower_bound() {
+        let line = |m: f64| {
+            let r = json!({"planner": {"min_predicted_clearance_m": m, "clearance_measured_up_to_m": 1.0}});
+            let s = super::summary(&r);
+            s.lines().find(|l| l.contains("min predicted clearance")).expect("the planner's line").to_string()
+        };
+        assert!(line(1.0).contains("min predicted clearance >= 1.000 m"), "{}", line(1.0));
+        assert!(line(0.25).contains("min predicted clearance 0.250 m"), "{}", line(0.25));
+        assert!(line(-0.02).contains("min predicted clearance -0.020 m"), "{}", line(-0.02));
+    }
 }

@@ -111,6 +111,9 @@ fn realtime_run_reaches_the_goal_with_a_sane_report() {
     assert!(num(&r, "/planner/cycles") > 100.0, "{:#}", r["planner"]);
     assert!(num(&r, "/planner/replans") >= 1.0, "{:#}", r["planner"]);
     assert!(num(&r, "/planner/plan_ms/p50") > 0.0);
+    // The clearance is measured up to a stated cap, and never said to be more than it.
+    let cap = num(&r, "/planner/clearance_measured_up_to_m");
+    assert!(cap > 0.0 && num(&r, "/planner/min_predicted_clearance_m") <= cap, "{:#}", r["planner"]);
     assert!(
         num(&r, "/final_error_rad") < 0.01,
         "final error {}; safe hold {:#}; sim {:#}",

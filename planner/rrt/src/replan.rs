@@ -160,6 +160,9 @@ pub struct Summary {
     pub deadline_misses: u64,
     pub fallbacks: Fallbacks,
     pub min_predicted_clearance_m: Option<f64>,
+    /// Predicted clearances are measured up to this (the checker's cap), m: a
+    /// `min_predicted_clearance_m` equal to it means this much or more.
+    pub clearance_measured_up_to_m: f64,
     pub plans_rejected_by_final_check: u64,
     /// Plant time the arm was first at the goal (every joint within the tolerance), s.
     pub goal_reached_s: Option<f64>,
@@ -287,6 +290,7 @@ impl Replanner {
             deadline_misses: s.deadline_misses,
             fallbacks: s.fallbacks,
             min_predicted_clearance_m: s.min_predicted_clearance_m,
+            clearance_measured_up_to_m: self.planner.checker.cap,
             plans_rejected_by_final_check: s.plans_rejected_by_final_check,
             goal_reached_s: s.goal_reached_s,
             iterations: s.planner_iterations,
