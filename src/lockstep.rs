@@ -53,6 +53,24 @@ pub struct EvalReport {
     pub planner: Option<Summary>,
     /// Path figures of the real motion.
     pub motion: MotionFigures,
+    /// Whether the run did what was asked: every check below passed.
+    pub ok: bool,
+    /// The checks of a process-set run ([`crate::verdict`]) that apply in process: the goal,
+    /// no collision, the joint limits, no safe hold or brake.
+    pub checks: Vec<crate::verdict::Check>,
+}
+
+/// The in-process checks of a run ([`crate::verdict::checks`] on the report's figures; the
+/// checks about processes and messages have nothing to check without them).
+fn in_process_checks(sc: &Scenario, r: &EvalReport) -> Vec<crate::verdict::Check> {
+    use serde_json::{json, to_value, Value};
+    let sim = json!({ "plant": r.plant, "debris": r.debris });
+    let tr = json!({ "final_error_rad": r.final_error_rad, "safe_hold_entries": r.safe_hold_entries });
+    let plan = to_value(&r.planner).unwrap_or(Value::Null);
+    let end = crate::verdict::Ending::default();
+    let all = crate::verdict::checks(sc, &end, &sim, &tr, &Value::Null, &plan, &Value::Null);
+    const IN_PROCESS: [&str; 4] = ["goal_reached", "no_collision", "joint_limits", "safe_holds"];
+    all.into_iter().filter(|c| IN_PROCESS.contains(&c.name)).collect()
 }
 
 /// Ticks between end-effector samples (path error, traces): 10 ms at 1 kHz.
@@ -627,7 +645,7 @@ impl Lockstep {
                 (core.current().duration_s, Some(core.summary(&sc.planner.method)))
             }
         };
-        EvalReport {
+        let mut r = EvalReport {
             method: sc.planner.method.clone(),
             ticks: self.sim.plant.tick(),
             trajectory_duration_s: duration,
@@ -677,7 +695,12 @@ impl Lockstep {
             },
             planner,
             motion: self.motion,
-        }
+            ok: false,
+            checks: Vec::new(),
+        };
+        r.checks = in_process_checks(sc, &r);
+        r.ok = r.checks.iter().all(|c| c.ok);
+        r
     }
 }
 

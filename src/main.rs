@@ -727,10 +727,17 @@ fn main() -> ExitCode {
             Ok(!rows.is_empty() && rows.iter().all(|r| r.pass))
         }
         Cmd::Eval { common } => {
+            if common.mode.as_deref() == Some("realtime") {
+                return Err("eval --mode realtime: eval runs in lockstep, in process (`dkrrt launch` runs in real time)".into());
+            }
             let sc = scenario(&common)?;
             let r = dkrrt::lockstep::run(&sc)?;
             println!("{}", serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?);
-            Ok(true)
+            for c in r.checks.iter().filter(|c| !c.ok) {
+                eprintln!("dkrrt eval: check {} failed: {}", c.name, c.detail);
+            }
+            // Exit status 1 when the run did not do what was asked (as `dkrrt launch`).
+            Ok(r.ok)
         }
     })();
     match res {

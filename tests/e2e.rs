@@ -569,6 +569,21 @@ fn bad_command_lines_are_refused_up_front() {
     }
 }
 
+/// `dkrrt eval` runs in lockstep: `--mode realtime` is refused rather than ignored; a run
+/// that does not reach its goal exits 1, naming the failed check.
+#[test]
+fn eval_refuses_real_time_and_exits_1_when_the_run_fails() {
+    let out = Command::new(exe()).args(["eval", "--mode", "realtime"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() == Some(2) && err.contains("--mode realtime"), "{err}");
+    let out = Command::new(exe()).args(["eval", "--duration", "0.5"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("check goal_reached failed"), "{err}");
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["ok"], false);
+}
+
 /// `dkrrt eval | head -1`: a closed pipe ends the process quietly (no panic).
 #[test]
 fn a_closed_pipe_ends_quietly() {

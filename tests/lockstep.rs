@@ -28,6 +28,29 @@ fn lockstep_reaches_the_goal_and_is_deterministic() {
     assert!(pa.forecasts as f64 > 0.9 * expect && pa.forecasts as f64 <= expect + 1.0, "{}", pa.forecasts);
     assert_eq!(pa.tracks as usize, da.objects);
     assert_eq!(pa.observations.rejected(), 0);
+    // It did what was asked: every in-process check passed.
+    let names: Vec<&str> = a.checks.iter().map(|c| c.name).collect();
+    assert_eq!(names, ["goal_reached", "no_collision", "joint_limits", "safe_holds"]);
+    assert!(a.ok && a.checks.iter().all(|c| c.ok), "{:?}", a.checks);
+}
+
+/// A run is `ok` only when it did what was asked (`dkrrt eval` exits 1 otherwise): the
+/// default episode driven straight collides; a run too short for the motion misses its goal.
+#[test]
+fn a_run_that_collides_or_misses_its_goal_is_not_ok() {
+    let failed = |r: &dkrrt::lockstep::EvalReport| -> Vec<&str> {
+        r.checks.iter().filter(|c| !c.ok).map(|c| c.name).collect()
+    };
+    let mut sc = Scenario::default_scenario();
+    dkrrt_episodes::resolve(&mut sc).unwrap().expect("the default scenario is an episode");
+    sc.planner.method = "straight".into();
+    let r = dkrrt::lockstep::run(&sc).unwrap();
+    assert!(r.debris.unwrap().collided());
+    assert!(!r.ok && failed(&r).contains(&"no_collision"), "{:?}", r.checks);
+    let mut sc = Scenario::default_scenario();
+    sc.run.duration_s = 0.5;
+    let r = dkrrt::lockstep::run(&sc).unwrap();
+    assert!(!r.ok && failed(&r) == ["goal_reached"], "{:?}", r.checks);
 }
 
 #[test]
