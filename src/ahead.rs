@@ -388,7 +388,7 @@ fn predict(mut p: PredictorLoop, input: &Pipe, out: &Pipe, _closer: Closer) {
             for (header, range) in &frames[w.frames_first..w.frames_first + w.frames_count] {
                 (scratch.header, scratch.count) = (*header, range.len() as u32);
                 scratch.items[..range.len()].copy_from_slice(&items[range.clone()]);
-                written |= matches!(p.feed(scratch, w.now_ns, w.next_cycle), Cadence::Written(n) if n > 0);
+                written |= matches!(p.feed(scratch, w.now_ns, w.next_cycle), Cadence::Written(_));
             }
             if written {
                 if *used == forecasts.len() {

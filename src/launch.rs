@@ -735,6 +735,7 @@ pub fn launch(opts: LaunchOptions) -> Result<(Value, bool), String> {
             "fallbacks": plan.get("fallbacks"),
             "min_predicted_clearance_m": plan.get("min_predicted_clearance_m"),
             "clearance_measured_up_to_m": plan.get("clearance_measured_up_to_m"),
+            "cycles_waiting_for_forecast": plan.get("cycles_waiting_for_forecast"),
             "goal_reached_s": plan.get("goal_reached_s"),
         }) } else { Value::Null },
         "processes": procs.iter().map(status_json).collect::<Vec<_>>(),
@@ -889,6 +890,13 @@ pub fn summary(r: &Value) -> String {
                 .and_then(Value::as_f64)
                 .map_or("never".into(), |v| format!("{v:.2}")),
         );
+        let waited = r.pointer("/planner/cycles_waiting_for_forecast").and_then(Value::as_u64).unwrap_or(0);
+        let cycles = r.pointer("/planner/cycles").and_then(Value::as_u64).unwrap_or(0);
+        if waited > 0 && waited == cycles {
+            s += "  planner              no forecast ever came: the arm was not moved\n";
+        } else if waited > 0 {
+            s += &format!("  planner              {waited} cycles waited for a first forecast\n");
+        }
     }
     s += &format!("  safe-hold entries {}", r["safe_hold"]["entries"]);
     if let Some(v) = r["final_velocity_rad_s"].as_array() {

@@ -177,11 +177,11 @@ impl PredictorLoop {
 
     fn count(&mut self, c: Cadence) {
         match c {
-            Cadence::Written(n) if n > 0 => {
+            Cadence::Written(n) => {
                 (self.forecasts, self.tracks, self.fresh, self.latest_deferred) =
                     (self.forecasts + 1, n as u32, true, false);
             }
-            Cadence::CalibrationOnly(n) if n > 0 => {
+            Cadence::CalibrationOnly(n) => {
                 (self.forecasts, self.tracks, self.deferred, self.latest_deferred) =
                     (self.forecasts + 1, n as u32, self.deferred + 1, true);
             }
@@ -504,10 +504,10 @@ impl Lockstep {
             let t = self.sim.plant.tick() as f64 * self.period_ns as f64 * 1e-9;
             if t + 1e-9 >= o.next_due_s {
                 o.next_due_s = dkrrt_planner::predict::next_forecast_due(t + 1e-9, o.rate_hz);
-                if o.table.forecast_into(t, o.steps, o.dt_s, &mut o.forecast) > 0 {
-                    o.forecasts += 1;
-                    o.fresh = true;
-                }
+                // Every one, empty too: the truth's forecast of an empty sky is empty.
+                o.table.forecast_into(t, o.steps, o.dt_s, &mut o.forecast);
+                o.forecasts += 1;
+                o.fresh = true;
             }
         }
         let q: [f64; NJ] = self.sim.plant.true_state().0.into();

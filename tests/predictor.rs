@@ -224,7 +224,7 @@ fn lockstep_forecasts_do_not_depend_on_how_frames_are_batched() {
     let mut want = 0u64;
     for k in 0..100u64 {
         frame_k(k, false, &mut frame);
-        if core.observe_then_forecast(&frame, &lim, sc.predictor.rate_hz, &mut msg) > 0 {
+        if core.observe_then_forecast(&frame, &lim, sc.predictor.rate_hz, &mut msg).is_some() {
             want += 1;
         }
     }

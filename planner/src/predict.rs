@@ -227,7 +227,10 @@ pub fn next_forecast_due(t: f64, rate_hz: f64) -> f64 {
 pub enum Cadence {
     /// No forecast was due with this frame.
     NotDue,
-    /// Written into the message: the number of tracks (0: no mature track).
+    /// Due, with nothing to publish: tracks, but none old enough to forecast.
+    Nothing,
+    /// Written into the message, to publish: the number of tracks (0: the sky is empty,
+    /// [`PredictorCore::publishable`]).
     Written(usize),
     /// Due, but nobody reads it: only what it changes in the predictor was done; the number of
     /// tracks it would have written.
@@ -235,12 +238,12 @@ pub enum Cadence {
 }
 
 impl Cadence {
-    /// Tracks written into the message (0 unless [`Cadence::Written`]).
-    pub fn written(self) -> usize {
+    /// The forecast written to publish and its tracks (`None` unless [`Cadence::Written`]).
+    pub fn written(self) -> Option<usize> {
         if let Cadence::Written(n) = self {
-            n
+            Some(n)
         } else {
-            0
+            None
         }
     }
 }
@@ -264,6 +267,9 @@ pub struct PredictorCore {
     /// frames, and the frame it fills.
     perception: DepthPerception,
     seen: Option<Box<DebrisObservation>>,
+    /// The newest valid frame of the pose sensor (or a perception driver) was empty: it looked
+    /// and saw nothing. With no track either, the sky is empty ([`PredictorCore::publishable`]).
+    sky_empty: bool,
 }
 
 impl PredictorCore {
@@ -284,7 +290,16 @@ impl PredictorCore {
             hold_still: sc.forecasts() == dkrrt_config::Forecasts::Static,
             perception: Default::default(),
             seen: Some(Box::new(<DebrisObservation as dkrrt_msg::Zeroed>::zeroed())),
+            sky_empty: false,
         }
+    }
+
+    /// Whether a forecast of `n` tracks (from [`PredictorCore::forecast_into`]) is worth
+    /// publishing: it has tracks, or the sky is empty (no track, and the sensor's newest frame
+    /// saw nothing), which the planner must hear to move. With tracks too young to forecast it
+    /// is not (the planner goes on waiting, or on its older forecast).
+    pub fn publishable(&self, n: usize) -> bool {
+        n > 0 || (self.sky_empty && self.pred.n_tracks() == 0)
     }
 
     /// A core for the scenario: [`new`](Self::new) with the depth front end the scenario names
@@ -322,10 +337,25 @@ impl PredictorCore {
     /// Feeds one observation frame: a bad `count` rejects the frame; otherwise every item is
     /// checked on its own against the contract and then gated by the predictor.
     pub fn observe_frame(&mut self, frame: &DebrisObservation, lim: &ContractLimits) {
+        self.observe_items(frame, lim, true);
+    }
+
+    /// [`PredictorCore::observe_frame`]; `sensor`: the frame is the sensor's (an empty one
+    /// says the sky is empty), not one the depth front end made of a camera view (where an
+    /// empty one may be a view of objects not yet whole).
+    fn observe_items(&mut self, frame: &DebrisObservation, lim: &ContractLimits, sensor: bool) {
         self.counters.frames += 1;
         if frame.validate_frame().is_err() {
             self.counters.frames_rejected += 1;
             return;
+        }
+        if sensor {
+            self.sky_empty = frame.count == 0;
+            if self.sky_empty && self.pred.n_tracks() == 0 {
+                // Nothing observed and nothing tracked: the clock the forecasts are due on
+                // runs on the frames (no measurement carries it).
+                self.newest_t = self.newest_t.max(frame.header.stamp_ns as f64 * 1e-9);
+            }
         }
         for (i, it) in frame.items[..frame.count as usize].iter().enumerate() {
             self.counters.items += 1;
@@ -371,7 +401,8 @@ impl PredictorCore {
 
     /// The lockstep cadence, frame by frame: observes `frame`, then forecasts into `msg` if
     /// that frame took the plant clock past the next `1/rate_hz` boundary. Returns the number
-    /// of tracks forecast (0: not due, or no mature track). Called for every frame in order,
+    /// of tracks of a forecast to publish (`None`: not due, or nothing to publish; `Some(0)`:
+    /// the sky is empty). Called for every frame in order,
     /// the forecasts are the same however the frames are batched (the in-process lockstep
     /// and the lockstep process share it).
     pub fn observe_then_forecast(
@@ -380,7 +411,7 @@ impl PredictorCore {
         lim: &ContractLimits,
         rate_hz: f64,
         msg: &mut DebrisForecast,
-    ) -> usize {
+    ) -> Option<usize> {
         self.observe_then_forecast_if(frame, lim, rate_hz, msg, true).written()
     }
 
@@ -396,14 +427,25 @@ impl PredictorCore {
         msg: &mut DebrisForecast,
         read: bool,
     ) -> Cadence {
-        self.observe_frame(frame, lim);
+        self.observe_items(frame, lim, true);
+        self.forecast_if_due(rate_hz, msg, read)
+    }
+
+    /// The forecast a frame made due, if any ([`PredictorCore::observe_then_forecast_if`]).
+    fn forecast_if_due(&mut self, rate_hz: f64, msg: &mut DebrisForecast, read: bool) -> Cadence {
         if !self.due_on_plant_clock(rate_hz) {
-            Cadence::NotDue
-        } else if read {
-            Cadence::Written(self.forecast_into(msg))
+            return Cadence::NotDue;
+        }
+        let (n, c): (usize, fn(usize) -> Cadence) = if read {
+            (self.forecast_into(msg), Cadence::Written)
         } else {
             self.apply_shapes();
-            Cadence::CalibrationOnly(self.pred.forecast_for_calibration(&mut self.buf))
+            (self.pred.forecast_for_calibration(&mut self.buf), Cadence::CalibrationOnly)
+        };
+        if self.publishable(n) {
+            c(n)
+        } else {
+            Cadence::Nothing
         }
     }
 
@@ -416,7 +458,7 @@ impl PredictorCore {
             return;
         }
         let seen = self.see(img);
-        self.observe_frame(&seen, lim);
+        self.observe_items(&seen, lim, false);
         self.seen = Some(seen);
     }
 
@@ -427,7 +469,7 @@ impl PredictorCore {
         lim: &ContractLimits,
         rate_hz: f64,
         msg: &mut DebrisForecast,
-    ) -> usize {
+    ) -> Option<usize> {
         self.observe_depth_then_forecast_if(img, lim, rate_hz, msg, true).written()
     }
 
@@ -444,7 +486,8 @@ impl PredictorCore {
             return Cadence::NotDue;
         }
         let seen = self.see(img);
-        let c = self.observe_then_forecast_if(&seen, lim, rate_hz, msg, read);
+        self.observe_items(&seen, lim, false);
+        let c = self.forecast_if_due(rate_hz, msg, read);
         self.seen = Some(seen);
         c
     }
@@ -506,7 +549,8 @@ impl PredictorCore {
         msg.count = n as u32;
         msg.steps = self.steps as u32;
         msg.dt_s = dt;
-        msg.t0_ns = if n > 0 { (t0.max(0.0) * 1e9).round() as u64 } else { 0 };
+        // An empty forecast (an empty sky) is stamped with the predictor's clock.
+        msg.t0_ns = (if n > 0 { t0 } else { self.newest_t }.max(0.0) * 1e9).round() as u64;
         msg.header.stamp_ns = msg.t0_ns;
         msg.header.flags = 0;
         let b = self.base;

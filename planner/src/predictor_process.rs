@@ -142,7 +142,7 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             .map_err(|e| e.to_string())?;
             let t0 = mono_ns();
             let n = core.forecast_into(&mut msg);
-            if n > 0 {
+            if core.publishable(n) {
                 publish(&mut msg, n, t0, mono_ns() as f64 * 1e-9);
             }
         } else {
@@ -150,11 +150,10 @@ pub fn run(run: &str, sc: &Scenario, stats_path: Option<&Path>) -> Result<Predic
             let mut step =
                 |core: &mut PredictorCore,
                  h: Header,
-                 observe: &dyn Fn(&mut PredictorCore, &mut DebrisForecast) -> usize| {
+                 observe: &dyn Fn(&mut PredictorCore, &mut DebrisForecast) -> Option<usize>| {
                     newest = Some(h);
                     let t0 = mono_ns();
-                    let n = observe(core, &mut msg);
-                    if n > 0 {
+                    if let Some(n) = observe(core, &mut msg) {
                         let t = core.newest_t;
                         publish(&mut msg, n, t0, t);
                     }

@@ -248,3 +248,49 @@ fn depth_frames_make_tracks_and_a_bad_one_is_rejected_and_counted() {
     assert_eq!((core.counters.frames, core.counters.frames_rejected), (c.frames + 1, 1));
     assert_eq!(core.gate().accepted, before);
 }
+
+/// The predictor's word on an empty sky: an empty sensor frame with nothing tracked makes the
+/// due forecasts empty ones, to publish (`Some(0)`); an empty frame while a track is held says
+/// nothing new (the track's forecasts go on); a track too young to forecast publishes nothing.
+#[test]
+fn an_empty_sky_is_forecast_and_a_young_track_is_not_hidden_behind_it() {
+    let sc = scenario("sparse-slow", "constant-velocity");
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let l = lim();
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let mut empty = <DebrisObservation as Zeroed>::zeroed();
+    let mut published = Vec::new();
+    for k in 1..=10u64 {
+        empty.header.stamp_ns = k * 20_000_000;
+        published.push(core.observe_then_forecast(&empty, &l, sc.predictor.rate_hz, &mut msg));
+    }
+    assert!(published.iter().all(|p| *p == Some(0)), "{published:?}");
+    assert_eq!((msg.count, msg.t0_ns), (0, 200_000_000), "empty, stamped with the frames' clock");
+    // One object seen: a young track (fewer observations than a forecast needs) publishes
+    // nothing, even on an empty frame; once old enough, its forecasts.
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let mut first: Option<DebrisObservation> = None;
+    for _ in 0..40 {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |f| {
+            first.get_or_insert(*f);
+            Ok(())
+        })
+        .unwrap();
+    }
+    let mut one = first.expect("a frame in 40 ms");
+    one.count = 1;
+    one.header.stamp_ns = 300_000_000;
+    one.items[0].t_meas_ns = 270_000_000;
+    assert_eq!(core.observe_then_forecast(&one, &l, sc.predictor.rate_hz, &mut msg), None, "young");
+    empty.header.stamp_ns = 400_000_000;
+    assert_eq!(core.observe_then_forecast(&empty, &l, sc.predictor.rate_hz, &mut msg), None, "not empty");
+    let mut n = None;
+    for k in 1..=10u64 {
+        one.header.stamp_ns = 300_000_000 + k * 20_000_000;
+        one.items[0].t_meas_ns = 270_000_000 + k * 20_000_000;
+        n = n.or(core.observe_then_forecast(&one, &l, sc.predictor.rate_hz, &mut msg));
+    }
+    assert_eq!(n, Some(1), "the track's forecast once it is old enough");
+}

@@ -241,6 +241,15 @@ impl DebrisSide {
     ) -> Result<u32, E> {
         let now_ns = (self.world.time() * 1e9).round() as u64;
         let mut sent = 0;
+        // A sample that saw nothing is sent as an empty frame (when nothing else is sent now):
+        // the predictor can then say the sky is empty rather than wait for a word.
+        if self.sensor.take_empty_delivery() && self.obs.as_slice().is_empty() {
+            frame.header.stamp_ns = now_ns;
+            frame.header.flags = 0;
+            frame.count = 0;
+            send(frame)?;
+            sent += 1;
+        }
         let all = self.obs.as_slice();
         for chunk in all.chunks(MAX_DEBRIS) {
             frame.header.stamp_ns = now_ns;

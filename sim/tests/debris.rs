@@ -69,6 +69,38 @@ fn a_debris_object_on_a_link_is_a_collision_and_a_distant_one_is_not() {
     let _ = std::fs::remove_dir_all(miss.parent().unwrap());
 }
 
+/// A sample that sees nothing (every object beyond the sensor's range) is still delivered, as
+/// an empty frame after the latency: "looked, saw nothing" is said, so an empty sky can be told
+/// from a silent sensor. A sample that saw something sends its items, never an empty frame too.
+#[test]
+fn a_sample_that_sees_nothing_is_an_empty_frame() {
+    let mut sc = Scenario::default_scenario();
+    sc.debris.latency_s = 0.03;
+    sc.debris.latency_jitter_s = 0.0;
+    sc.debris.dropout = 0.0;
+    // Far beyond the sensor's range (nothing seen), then near (seen).
+    for (tag, p, seen) in [("empty-far", [5000.0, 0.0, 0.0], false), ("empty-near", [3.0, 2.0, 0.0], true)] {
+        sc.debris.scene = sphere_scene(tag, p, 0.2).display().to_string();
+        let mut side = DebrisSide::new(&sc, &ArmModel::default_arm()).unwrap();
+        let mut frame = <DebrisObservation as Zeroed>::zeroed();
+        let mut frames: Vec<(u64, u32)> = Vec::new();
+        for _ in 0..200u64 {
+            side.step(1e-3);
+            side.drain_observations::<()>(&mut frame, |f| {
+                frames.push((f.header.stamp_ns, f.count));
+                Ok(())
+            })
+            .unwrap();
+        }
+        // Samples at 0, 20, ..., 180 ms, each delivered 30 ms later: 9 by 200 ms.
+        let stamps: Vec<u64> = frames.iter().map(|f| f.0).collect();
+        let want: Vec<u64> = (0..9).map(|k| 30_000_000 + k * 20_000_000).collect();
+        assert_eq!(stamps, want, "{tag}");
+        assert!(frames.iter().all(|f| f.1 == seen as u32), "{tag}: {frames:?}");
+        assert_eq!(side.stats.observation_frames, 9, "{tag}");
+    }
+}
+
 #[test]
 fn observations_are_base_frame_poses_on_the_plant_clock() {
     let mut sc = Scenario::default_scenario();

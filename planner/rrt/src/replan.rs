@@ -43,7 +43,10 @@ pub struct ReplanConfig {
     pub move_react_s: f64,
     /// Planner iterations per cycle (the work budget lockstep runs use).
     pub iterations: u32,
-    /// With debris expected, wait this long (plant time) for a first forecast before moving.
+    /// With debris expected, wait this long (plant time) for a first forecast before moving
+    /// (infinite: until one comes). A pose sensor's empty frames let the predictor say the sky
+    /// is empty, so a planner on it never needs to move unwarned; a camera's front end cannot
+    /// tell an empty view from objects not yet seen whole.
     pub forecast_wait_s: f64,
     /// Goal tolerance (every joint), rad.
     pub goal_tol_rad: f64,
@@ -143,6 +146,8 @@ pub struct ReplanStats {
     pub planner_iterations: u64,
     /// Plant time the goal was first reached, s.
     pub goal_reached_s: Option<f64>,
+    /// Cycles that did not plan because no forecast had come yet (debris expected).
+    pub cycles_waiting_for_forecast: u64,
 }
 
 /// What the replanning loop did over a run (the `planner` section of reports, the same for
@@ -166,6 +171,8 @@ pub struct Summary {
     pub plans_rejected_by_final_check: u64,
     /// Plant time the arm was first at the goal (every joint within the tolerance), s.
     pub goal_reached_s: Option<f64>,
+    /// Cycles that did not plan because no forecast had come yet.
+    pub cycles_waiting_for_forecast: u64,
     pub iterations: u64,
 }
 
@@ -293,6 +300,7 @@ impl Replanner {
             clearance_measured_up_to_m: self.planner.checker.cap,
             plans_rejected_by_final_check: s.plans_rejected_by_final_check,
             goal_reached_s: s.goal_reached_s,
+            cycles_waiting_for_forecast: s.cycles_waiting_for_forecast,
             iterations: s.planner_iterations,
         }
     }
@@ -346,6 +354,7 @@ impl Replanner {
         st.min_predicted_clearance_m = f64::INFINITY;
         let mut publish = false;
         let waiting = self.has_debris && !self.have_forecast && t_now < self.cfg.forecast_wait_s;
+        self.stats.cycles_waiting_for_forecast += waiting as u64;
         let braking = tracker.mode == ControllerMode::Brake;
         if !waiting && !braking {
             publish = self.cycle(t_now, q_meas, tracker, goal_changed, clock, c_start, &mut st, out);

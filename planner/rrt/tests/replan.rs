@@ -107,6 +107,35 @@ fn a_new_plan_continues_the_active_one_exactly_at_the_commit_time() {
     assert!(check_message(&mut p, &w, &second, t0, t0 + 5.0).0);
 }
 
+/// With debris expected and no bound on the wait (the planner on a pose sensor), no motion is
+/// published before a forecast comes, however long that takes (a predictor that never comes
+/// leaves the arm at rest); an empty forecast (the predictor's word that the sky is empty) is
+/// a forecast: the free plan follows at once. Each waiting cycle is counted.
+#[test]
+fn no_motion_before_a_forecast_and_an_empty_one_lets_the_arm_go() {
+    let rc = ReplanConfig { forecast_wait_s: f64::INFINITY, ..ReplanConfig::default() };
+    let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    for k in 0..600u64 {
+        let d = rp.step(k * 100_000_000, &START, idle, None, &GOAL, &mut clk, &mut out);
+        assert!(!d.publish, "a motion before any forecast, at {} s", k as f64 * 0.1);
+    }
+    assert_eq!(rp.summary("dk-rrt").cycles_waiting_for_forecast, 600);
+    let mut empty = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    (empty.steps, empty.dt_s, empty.t0_ns) = (40, 0.1, 60_000_000_000);
+    let d = rp.step(60_000_000_000, &START, idle, Some(&empty), &GOAL, &mut clk, &mut out);
+    assert!(d.publish, "the empty sky's forecast lets the free plan go");
+    assert_eq!(rp.summary("dk-rrt").cycles_waiting_for_forecast, 600);
+    // The bounded wait (a camera's front end): after it, the arm moves on what it has.
+    let rc = ReplanConfig { forecast_wait_s: 2.0, ..ReplanConfig::default() };
+    let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
+    let moved =
+        (0..30u64).find(|k| rp.step(k * 100_000_000, &START, idle, None, &GOAL, &mut clk, &mut out).publish);
+    assert_eq!(moved, Some(20), "from 2 s on");
+}
+
 #[test]
 fn a_valid_plan_is_kept_and_nothing_valid_means_a_brake_never_an_unchecked_plan() {
     let mut rp = replanner();

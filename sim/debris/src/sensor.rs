@@ -102,6 +102,8 @@ pub struct SensorError {
 
 /// Capacity of the internal latency queue.
 pub const QUEUE_CAP: usize = 32 * MAX_DEBRIS;
+/// Samples in flight (the queue's batches): the most empty ones waiting for delivery.
+const EMPTY_CAP: usize = QUEUE_CAP / MAX_DEBRIS;
 /// Capacity of an [`ObsBuffer`].
 pub const OBS_CAP: usize = 4 * MAX_DEBRIS;
 
@@ -168,6 +170,15 @@ pub struct Sensor {
     pub dropped: u64,
     /// Measurements lost because the latency queue was full.
     pub queue_overflow: u64,
+    /// When the samples that saw nothing (no object in range, every measurement lost) are
+    /// delivered, oldest first: after the latency, without jitter (no noise is drawn for them,
+    /// so the stream of the other samples stays the same). A ring: `empty_due[empty_head..]`,
+    /// `empty_len` of them (at most one per sample in flight, fewer than the queue's batches).
+    empty_due: [f64; EMPTY_CAP],
+    empty_head: usize,
+    empty_len: usize,
+    /// A sample that saw nothing was delivered (see [`Sensor::take_empty_delivery`]).
+    empty_delivered: bool,
 }
 
 fn gauss(rng: &mut SmallRng) -> f64 {
@@ -217,6 +228,10 @@ impl Sensor {
             dropped: 0,
             out_of_range: 0,
             queue_overflow: 0,
+            empty_due: [0.0; EMPTY_CAP],
+            empty_head: 0,
+            empty_len: 0,
+            empty_delivered: false,
         })
     }
 
@@ -247,13 +262,26 @@ impl Sensor {
             self.len -= 1;
             n += 1;
         }
+        while self.empty_len > 0 && self.empty_due[self.empty_head] <= t + 1e-12 {
+            self.empty_head = (self.empty_head + 1) % EMPTY_CAP;
+            self.empty_len -= 1;
+            self.empty_delivered = true;
+        }
         n
+    }
+
+    /// Whether a sample that saw nothing has been delivered since the last call: a perception
+    /// chain says "looked, saw nothing" with an empty frame, so that an empty sky can be told
+    /// from a silent sensor.
+    pub fn take_empty_delivery(&mut self) -> bool {
+        std::mem::take(&mut self.empty_delivered)
     }
 
     fn sample(&mut self, t: f64, truth: &[Debris]) {
         let c = self.cfg;
         let seq = self.seq;
         self.seq = self.seq.wrapping_add(1);
+        let queued = self.len;
         for d in truth {
             if d.state.p.norm() > c.max_range {
                 self.out_of_range += 1;
@@ -303,6 +331,10 @@ impl Sensor {
             let tail = (self.head + self.len) % QUEUE_CAP;
             self.queue[tail] = o;
             self.len += 1;
+        }
+        if self.len == queued && self.empty_len < EMPTY_CAP {
+            self.empty_due[(self.empty_head + self.empty_len) % EMPTY_CAP] = t + c.latency;
+            self.empty_len += 1;
         }
     }
 }
