@@ -34,28 +34,35 @@ fn lockstep_reaches_the_goal_and_is_deterministic() {
     assert!(a.ok && a.checks.iter().all(|c| c.ok), "{:?}", a.checks);
 }
 
-/// A scene with no object: the sensor says it sees nothing, the predictor forecasts an empty
-/// sky, and the planner moves at once (it waited 2 s for a forecast that could not come, then
-/// moved without one). The same run from the process set: `tests/e2e.rs`.
+/// A scene with no object: the sensor says it sees nothing (the camera's captures label no
+/// object), the predictor forecasts an empty sky, and the planner moves at once (it waited 2 s
+/// for a forecast that could not come, then moved without one). The same run from the process
+/// set: `tests/e2e.rs`.
 #[test]
 fn an_empty_sky_is_said_and_the_arm_goes_at_once() {
     let dir = std::env::temp_dir().join(format!("dkrrt-empty-sky-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("empty.toml");
     std::fs::write(&scene, "name = \"empty\"\n").unwrap();
-    let mut sc = Scenario::default_scenario();
-    sc.debris.scene = scene.display().to_string();
-    let r = dkrrt::lockstep::run(&sc).unwrap();
+    for input in ["poses", "depth"] {
+        let mut sc = Scenario::default_scenario();
+        sc.debris.scene = scene.display().to_string();
+        sc.predictor.input = input.into();
+        let r = dkrrt::lockstep::run(&sc).unwrap();
+        assert!(r.ok, "{input}: {:?}", r.checks);
+        let p = r.predictor.unwrap();
+        // Poses: a forecast per 1/rate from the first frame (after the 30 ms latency); depth:
+        // one per capture (20 Hz), once the next capture shows the last one whole.
+        let expect = sc.run.duration_s
+            * sc.predictor.rate_hz.min(if input == "depth" { sc.camera.rate_hz } else { f64::INFINITY });
+        assert!(p.forecasts as f64 > 0.95 * expect && p.tracks == 0, "{input}: {} forecasts", p.forecasts);
+        let plan = r.planner.unwrap();
+        assert!(plan.cycles_waiting_for_forecast <= 1, "{input}: {}", plan.cycles_waiting_for_forecast);
+        let start =
+            r.events.iter().find(|e| e.to == dkrrt_msg::ControllerMode::Track).expect("the arm moved");
+        assert!(start.plant_ns < 300_000_000, "{input}: moved at {} ns", start.plant_ns);
+    }
     let _ = std::fs::remove_dir_all(&dir);
-    assert!(r.ok, "{:?}", r.checks);
-    let p = r.predictor.unwrap();
-    let expect = sc.run.duration_s * sc.predictor.rate_hz;
-    assert!(p.forecasts as f64 > 0.95 * expect && p.tracks == 0, "{} forecasts", p.forecasts);
-    let plan = r.planner.unwrap();
-    // The first frame comes after the sensor latency (30 ms), a forecast with it.
-    assert!(plan.cycles_waiting_for_forecast <= 1, "{}", plan.cycles_waiting_for_forecast);
-    let start = r.events.iter().find(|e| e.to == dkrrt_msg::ControllerMode::Track).expect("the arm moved");
-    assert!(start.plant_ns < 300_000_000, "moved at {} ns", start.plant_ns);
 }
 
 /// A run is `ok` only when it did what was asked (`dkrrt eval` exits 1 otherwise): the

@@ -268,8 +268,12 @@ pub struct PredictorCore {
     perception: DepthPerception,
     seen: Option<Box<DebrisObservation>>,
     /// The newest valid frame of the pose sensor (or a perception driver) was empty: it looked
-    /// and saw nothing. With no track either, the sky is empty ([`PredictorCore::publishable`]).
+    /// and saw nothing; on the depth input, the newest whole capture (every frame with its
+    /// stamp) labelled no object. With no track either, the sky is empty
+    /// ([`PredictorCore::publishable`]).
     sky_empty: bool,
+    /// The depth capture being read: its stamp and whether a frame of it labelled an object.
+    capture: Option<(u64, bool)>,
 }
 
 impl PredictorCore {
@@ -291,6 +295,7 @@ impl PredictorCore {
             perception: Default::default(),
             seen: Some(Box::new(<DebrisObservation as dkrrt_msg::Zeroed>::zeroed())),
             sky_empty: false,
+            capture: None,
         }
     }
 
@@ -457,6 +462,7 @@ impl PredictorCore {
         if !self.depth_valid(img, lim) {
             return;
         }
+        self.note_capture(img);
         let seen = self.see(img);
         self.observe_items(&seen, lim, false);
         self.seen = Some(seen);
@@ -485,6 +491,7 @@ impl PredictorCore {
         if !self.depth_valid(img, lim) {
             return Cadence::NotDue;
         }
+        self.note_capture(img);
         let seen = self.see(img);
         self.observe_items(&seen, lim, false);
         let c = self.forecast_if_due(rate_hz, msg, read);
@@ -504,6 +511,29 @@ impl PredictorCore {
     }
 
     /// The observation frame of a depth frame (the core's own buffer, handed back after use).
+    /// A depth frame's part in the empty-sky rule: a rig's faces come as frames with the
+    /// capture's stamp, so a capture is whole when a frame of the next one arrives; one whose
+    /// frames labelled no object (a front end's views may be of objects not yet whole, its
+    /// labels are not) says the sky was empty then.
+    fn note_capture(&mut self, img: &dkrrt_msg::DepthImage) {
+        let stamp = img.header.stamp_ns;
+        match self.capture {
+            Some((s, _)) if s == stamp => {}
+            prev => {
+                if let Some((s, labelled)) = prev {
+                    self.sky_empty = !labelled;
+                    if self.sky_empty && self.pred.n_tracks() == 0 {
+                        self.newest_t = self.newest_t.max(s as f64 * 1e-9);
+                    }
+                }
+                self.capture = Some((stamp, false));
+            }
+        }
+        if let Some(c) = self.capture.as_mut() {
+            c.1 |= img.n_instances > 0;
+        }
+    }
+
     fn see(&mut self, img: &dkrrt_msg::DepthImage) -> Box<DebrisObservation> {
         let mut seen = self.seen.take().expect("the depth buffer is back after each use");
         self.perception.convert(img, &mut seen);

@@ -20,13 +20,6 @@ pub fn configs(sc: &Scenario) -> (PlannerConfig, ReplanConfig) {
         margin_m: p.margin_m,
         iterations: p.iterations,
         enforce_deadline: sc.run.mode == dkrrt_config::Mode::Realtime,
-        // On the pose sensor, the predictor says so when the sky is empty: no motion before a
-        // forecast (a predictor that never comes leaves the arm at rest, not moving unwarned).
-        forecast_wait_s: if sc.depth_input() {
-            ReplanConfig::default().forecast_wait_s
-        } else {
-            f64::INFINITY
-        },
         ..ReplanConfig::default()
     };
     (pc, rc)

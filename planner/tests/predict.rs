@@ -294,3 +294,34 @@ fn an_empty_sky_is_forecast_and_a_young_track_is_not_hidden_behind_it() {
     }
     assert_eq!(n, Some(1), "the track's forecast once it is old enough");
 }
+
+/// On the depth input the sky is empty when a whole capture (every frame with its stamp: a
+/// rig's faces) labels no object; a capture with a label is not, even when the front end makes
+/// no pose of it (a view not yet whole). A capture is whole once a frame of the next arrives.
+#[test]
+fn a_depth_capture_labelling_nothing_is_an_empty_sky_and_one_label_is_not() {
+    let mut sc = scenario("sparse-slow", "constant-velocity");
+    sc.predictor.input = "depth".into();
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let l = lim();
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let mut img = Box::new(<dkrrt_msg::DepthImage as Zeroed>::zeroed());
+    (img.width, img.height, img.focal_px, img.cx, img.cy) = (4, 4, 2.0, 2.0, 2.0);
+    (img.orientation, img.range_min_m, img.range_max_m) = ([1.0, 0.0, 0.0, 0.0], 0.2, 15.0);
+    assert!(img.validate(&l).is_ok());
+    let rate = sc.predictor.rate_hz;
+    let mut feed = |core: &mut PredictorCore, stamp_ms: u64, labels: u32| {
+        img.header.stamp_ns = stamp_ms * 1_000_000;
+        img.n_instances = labels;
+        core.observe_depth_then_forecast(&img, &l, rate, &mut msg)
+    };
+    // Capture 0: two faces, nothing labelled; whole when capture 50's first face arrives.
+    assert_eq!(feed(&mut core, 0, 0), None);
+    assert_eq!(feed(&mut core, 0, 0), None);
+    assert_eq!(feed(&mut core, 50, 0), Some(0), "capture 0 labelled nothing: an empty sky");
+    // Capture 100: one face labels an object (no whole view of it): not an empty sky.
+    assert_eq!(feed(&mut core, 100, 0), Some(0), "capture 50 labelled nothing either");
+    assert_eq!(feed(&mut core, 100, 1), None);
+    assert_eq!(feed(&mut core, 150, 0), None, "capture 100 labelled an object");
+    assert_eq!(feed(&mut core, 200, 0), Some(0), "capture 150 labelled nothing");
+}

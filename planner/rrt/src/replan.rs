@@ -44,9 +44,8 @@ pub struct ReplanConfig {
     /// Planner iterations per cycle (the work budget lockstep runs use).
     pub iterations: u32,
     /// With debris expected, wait this long (plant time) for a first forecast before moving
-    /// (infinite: until one comes). A pose sensor's empty frames let the predictor say the sky
-    /// is empty, so a planner on it never needs to move unwarned; a camera's front end cannot
-    /// tell an empty view from objects not yet seen whole.
+    /// (default: infinite, until one comes: the predictor publishes empty forecasts when the
+    /// sky is empty, so a predictor that never speaks leaves the arm at rest).
     pub forecast_wait_s: f64,
     /// Goal tolerance (every joint), rad.
     pub goal_tol_rad: f64,
@@ -76,7 +75,7 @@ impl Default for ReplanConfig {
             margin_m: 0.05,
             move_react_s: 3.0,
             iterations: 300,
-            forecast_wait_s: 2.0,
+            forecast_wait_s: f64::INFINITY,
             goal_tol_rad: 0.01,
             enforce_deadline: true,
             rest_react_s: 3.0,

@@ -128,7 +128,7 @@ fn no_motion_before_a_forecast_and_an_empty_one_lets_the_arm_go() {
     let d = rp.step(60_000_000_000, &START, idle, Some(&empty), &GOAL, &mut clk, &mut out);
     assert!(d.publish, "the empty sky's forecast lets the free plan go");
     assert_eq!(rp.summary("dk-rrt").cycles_waiting_for_forecast, 600);
-    // The bounded wait (a camera's front end): after it, the arm moves on what it has.
+    // A bounded wait, if one is configured: after it, the arm moves on what it has.
     let rc = ReplanConfig { forecast_wait_s: 2.0, ..ReplanConfig::default() };
     let mut rp = Replanner::new(ArmModel::default_arm(), limits(), PlannerConfig::default(), rc, true);
     let moved =
