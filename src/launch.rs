@@ -1077,4 +1077,16 @@ mod tests {
         assert!(line(0.25).contains("min predicted clearance 0.250 m"), "{}", line(0.25));
         assert!(line(-0.02).contains("min predicted clearance -0.020 m"), "{}", line(-0.02));
     }
+
+    /// A planner that never got a forecast says so (the arm was kept at rest), and one that
+    /// waited for its first says how long.
+    #[test]
+    fn cycles_waiting_for_a_forecast_are_reported() {
+        let text = |waited: u64| {
+            super::summary(&json!({"planner": {"cycles": 80, "cycles_waiting_for_forecast": waited}}))
+        };
+        assert!(text(80).contains("no forecast ever came: the arm was not moved"), "{}", text(80));
+        assert!(text(3).contains("3 cycles waited for a first forecast"), "{}", text(3));
+        assert!(!text(0).contains("forecast"), "{}", text(0));
+    }
 }
