@@ -470,29 +470,15 @@ fn a_broken_scenario_is_refused_naming_the_field() {
 #[test]
 fn the_process_set_hears_an_empty_sky_as_the_lockstep_does() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = std::env::temp_dir().join(format!("dkrrt-e2e-empty-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("empty.toml"), "name = \"empty\"\n").unwrap();
+    let scene = std::env::temp_dir().join(format!("dkrrt-e2e-empty-scene-{}.toml", std::process::id()));
+    std::fs::write(&scene, "name = \"empty\"\n").unwrap();
     let text = without_episode(dkrrt_config::DEFAULT_SCENARIO)
-        .replace("scene = \"sparse-slow\"", "scene = \"empty.toml\"");
-    let p = dir.join("sc.toml");
-    std::fs::write(&p, &text).unwrap();
-    let rp = report_path("empty");
-    let out = Command::new(exe())
-        .args(["launch", "--mode", "lockstep", "--scenario"])
-        .arg(&p)
-        .arg("--report")
-        .arg(&rp)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let r = read_report(&rp);
-    let _ = std::fs::remove_file(&rp);
-    let mut sc = dkrrt_config::Scenario::load(p.to_str().unwrap()).unwrap();
+        .replace("scene = \"sparse-slow\"", &format!("scene = {:?}", scene.display().to_string()));
+    let (r, _) = launch_lockstep(&text, "empty");
+    let mut sc = dkrrt_config::Scenario::from_toml_str(&text, "empty").unwrap();
     sc.run.mode = dkrrt_config::Mode::Lockstep;
     let eval = dkrrt::lockstep::run(&sc).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    assert_eq!(r["ok"], true, "{:#}", r["checks"]);
+    let _ = std::fs::remove_file(&scene);
     assert_eq!(num(&r, "/predictor/forecasts"), eval.predictor.unwrap().forecasts as f64);
     let plan = eval.planner.unwrap();
     assert_eq!(num(&r, "/planner/cycles"), plan.cycles as f64);
