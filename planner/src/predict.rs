@@ -299,12 +299,18 @@ impl PredictorCore {
         }
     }
 
-    /// Whether a forecast of `n` tracks (from [`PredictorCore::forecast_into`]) is worth
-    /// publishing: it has tracks, or the sky is empty (no track, and the sensor's newest frame
+    /// Whether a forecast of `n` tracks (from [`PredictorCore::forecast_into`]) is to be
+    /// published: it has tracks, or the sky is empty (no track, and the sensor's newest frame
     /// saw nothing), which the planner must hear to move. With tracks too young to forecast it
-    /// is not (the planner goes on waiting, or on its older forecast).
-    pub fn publishable(&self, n: usize) -> bool {
-        n > 0 || (self.sky_empty && self.pred.n_tracks() == 0)
+    /// is not (the planner goes on waiting, or on its older forecast). An empty sky is said
+    /// once per frame that saw it: a sensor that falls silent does not keep it empty.
+    pub fn publishable(&mut self, n: usize) -> bool {
+        if n > 0 {
+            return true;
+        }
+        let empty = self.sky_empty && self.pred.n_tracks() == 0;
+        self.sky_empty = false;
+        empty
     }
 
     /// A core for the scenario: [`new`](Self::new) with the depth front end the scenario names
@@ -510,7 +516,6 @@ impl PredictorCore {
         false
     }
 
-    /// The observation frame of a depth frame (the core's own buffer, handed back after use).
     /// A depth frame's part in the empty-sky rule: a rig's faces come as frames with the
     /// capture's stamp, so a capture is whole when a frame of the next one arrives; one whose
     /// frames labelled no object (a front end's views may be of objects not yet whole, its
@@ -534,6 +539,7 @@ impl PredictorCore {
         }
     }
 
+    /// The observation frame of a depth frame (the core's own buffer, handed back after use).
     fn see(&mut self, img: &dkrrt_msg::DepthImage) -> Box<DebrisObservation> {
         let mut seen = self.seen.take().expect("the depth buffer is back after each use");
         self.perception.convert(img, &mut seen);

@@ -266,6 +266,14 @@ fn an_empty_sky_is_forecast_and_a_young_track_is_not_hidden_behind_it() {
     }
     assert!(published.iter().all(|p| *p == Some(0)), "{published:?}");
     assert_eq!((msg.count, msg.t0_ns), (0, 200_000_000), "empty, stamped with the frames' clock");
+    // The real-time shell forecasts every wake: an empty sky is said once per frame that saw
+    // it, so a sensor that falls silent does not keep the sky empty.
+    let n = core.forecast_into(&mut msg);
+    assert!(n == 0 && !core.publishable(n), "no frame since the last empty forecast");
+    empty.header.stamp_ns = 220_000_000;
+    core.observe_frame(&empty, &l);
+    let n = core.forecast_into(&mut msg);
+    assert!(core.publishable(n) && !core.publishable(n), "once per frame");
     // One object seen: a young track (fewer observations than a forecast needs) publishes
     // nothing, even on an empty frame; once old enough, its forecasts.
     let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
