@@ -595,6 +595,8 @@ fn bad_command_lines_are_refused_up_front() {
 /// that does not reach its goal exits 1, naming the failed check.
 #[test]
 fn eval_refuses_real_time_and_exits_1_when_the_run_fails() {
+    // An episode's build and run: CPU the real-time process sets must not share.
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let out = Command::new(exe()).args(["eval", "--mode", "realtime"]).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.code() == Some(2) && err.contains("--mode realtime"), "{err}");
@@ -610,6 +612,7 @@ fn eval_refuses_real_time_and_exits_1_when_the_run_fails() {
 #[test]
 fn a_closed_pipe_ends_quietly() {
     use std::io::Read;
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let mut child = Command::new(exe())
         .args(["eval", "--duration", "0.5"])
         .stdout(Stdio::piped())
