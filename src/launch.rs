@@ -893,7 +893,7 @@ pub fn summary(r: &Value) -> String {
         let waited = r.pointer("/planner/cycles_waiting_for_forecast").and_then(Value::as_u64).unwrap_or(0);
         let cycles = r.pointer("/planner/cycles").and_then(Value::as_u64).unwrap_or(0);
         if waited > 0 && waited == cycles {
-            s += "  planner              no forecast ever came: the arm was not moved\n";
+            s += "  planner              no forecast ever came: it planned no motion\n";
         } else if waited > 0 {
             s += &format!("  planner              {waited} cycles waited for a first forecast\n");
         }
@@ -1085,7 +1085,7 @@ mod tests {
         let text = |waited: u64| {
             super::summary(&json!({"planner": {"cycles": 80, "cycles_waiting_for_forecast": waited}}))
         };
-        assert!(text(80).contains("no forecast ever came: the arm was not moved"), "{}", text(80));
+        assert!(text(80).contains("no forecast ever came: it planned no motion"), "{}", text(80));
         assert!(text(3).contains("3 cycles waited for a first forecast"), "{}", text(3));
         assert!(!text(0).contains("forecast"), "{}", text(0));
     }
