@@ -1078,7 +1078,7 @@ mod tests {
         assert!(line(-0.02).contains("min predicted clearance -0.020 m"), "{}", line(-0.02));
     }
 
-    /// A planner that never got a forecast says so (the arm was kept at rest), and one that
+    /// A planner that never got a forecast says so (it planned no motion), and one that
     /// waited for its first says how long.
     #[test]
     fn cycles_waiting_for_a_forecast_are_reported() {
