@@ -407,6 +407,8 @@ fn main() -> ExitCode {
     let res: Result<bool, String> = (|| match cli.cmd {
         Cmd::Launch { common, report, run, figures, record, driver } => {
             let sc = scenario(&common)?;
+            // The predictor's model files, read before any process starts.
+            dkrrt_planner::predict::check_model_files(&sc)?;
             // What loading the arm's URDF ignored or assumed, said once.
             for n in sc.load_arm().map_err(|e| e.to_string())?.load_notes() {
                 println!("dkrrt: arm: {}", dkrrt_io::printable(n));

@@ -461,6 +461,21 @@ fn a_broken_scenario_is_refused_naming_the_field() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("tracker.stale_ticks"), "{err}");
+    // What only the predictor process reads (its method, its model file) is refused before
+    // any process starts too, naming the scenario file and the field: not a predictor that
+    // exits at start-up, is restarted three times and fails the run 20 s later.
+    for (from, to, field) in [
+        ("method = \"deep-koopman-online\"", "method = \"crystal-ball\"", "predictor.method = \"crystal-ball\""),
+        ("\nmodel = \"\"", "\nmodel = \"missing.dkm\"", "predictor.model = "),
+    ] {
+        assert!(dkrrt_config::DEFAULT_SCENARIO.contains(from), "{from}");
+        std::fs::write(&p, dkrrt_config::DEFAULT_SCENARIO.replace(from, to)).unwrap();
+        let out = Command::new(exe()).args(["launch", "--scenario"]).arg(&p).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("scenario {}: {field}", p.display())), "{err}");
+        assert!(out.stdout.is_empty(), "nothing started: {}", String::from_utf8_lossy(&out.stdout));
+    }
     let _ = std::fs::remove_dir_all(dir);
 }
 

@@ -49,12 +49,33 @@ pub fn learned_perception(net: dkrrt_visual::VisualNet) -> DepthPerception {
 /// Errors name the field and what is wrong with the file (format, version, checksum, ...).
 pub fn load_trained(sc: &Scenario) -> Result<TrainedModels, String> {
     match sc.predictor_model_path() {
-        Some(p) => TrainedModels::load(&p).map_err(|e| format!("predictor.model {}: {e}", p.display())),
+        Some(p) => TrainedModels::load(&p)
+            .map_err(|e| format!("scenario {}: predictor.model = {}: {e}", sc.origin_name(), p.display())),
         None => dkrrt_deep::from_bytes(EMBEDDED_MODEL)
             .and_then(|m| dkrrt_deep::select(m, ATTITUDE_MODEL, 7))
             .map(|attitude| TrainedModels { attitude, report: None, validation: Vec::new() })
             .map_err(|e| format!("embedded deep model: {e}")),
     }
+}
+
+/// Reads the model files the scenario's predictor would read at start-up (the deep model of a
+/// deep method, the learned front end's f_θ), so that a missing or bad one is an error naming
+/// the field and the file before any process starts, not a predictor process that exits at
+/// start-up and is restarted.
+pub fn check_model_files(sc: &Scenario) -> Result<(), String> {
+    if !sc.has_debris() || sc.forecasts() == dkrrt_config::Forecasts::Oracle {
+        return Ok(());
+    }
+    if Method::from_name(sc.predictor_method()).is_some_and(|m| m.deep()) {
+        load_trained(sc)?;
+    }
+    if sc.learned_front_end() {
+        if let Some(p) = sc.visual_model_path() {
+            dkrrt_visual::file::load(&p)
+                .map_err(|e| format!("scenario {}: predictor.visual_model {e}", sc.origin_name()))?;
+        }
+    }
+    Ok(())
 }
 
 /// Observation items the core rejected before the predictor saw them (contract violations),
@@ -320,7 +341,8 @@ impl PredictorCore {
         let mut core = PredictorCore::new(models, sc);
         if sc.learned_front_end() {
             let net = match sc.visual_model_path() {
-                Some(p) => dkrrt_visual::file::load(&p).map_err(|e| format!("predictor.visual_model {e}"))?,
+                Some(p) => dkrrt_visual::file::load(&p)
+                    .map_err(|e| format!("scenario {}: predictor.visual_model {e}", sc.origin_name()))?,
                 None => embedded_visual()?,
             };
             core.perception = learned_perception(net);

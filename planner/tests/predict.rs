@@ -153,6 +153,11 @@ fn an_unknown_method_names_the_field() {
     let sc = scenario("sparse-slow", "crystal-ball");
     let e = fit_models(&sc).err().unwrap();
     assert!(e.contains("predictor.method") && e.contains("crystal-ball"), "{e}");
+    // The scenario's own check (before any process starts) knows the same methods.
+    let names: Vec<&str> = dkrrt_predictor::Method::ALL.iter().map(|m| m.name()).collect();
+    assert_eq!(names, dkrrt_config::PREDICTOR_METHODS);
+    let arm = sc.load_arm().err().expect("an unknown method is refused").to_string();
+    assert!(arm.contains("predictor.method = \"crystal-ball\"") && arm.contains("deep-koopman"), "{arm}");
 }
 
 #[global_allocator]

@@ -12,7 +12,7 @@ impl Scenario {
             None => ArmModel::default_arm(),
             Some(p) => {
                 ArmModel::from_urdf_file_with(&p, &self.urdf_options()).map_err(|e| ConfigError::Invalid {
-                    origin: self.name.clone(),
+                    origin: self.origin_name(),
                     field: "robot.urdf".into(),
                     value: p.display().to_string(),
                     reason: e.to_string(),

@@ -15,7 +15,7 @@ impl Scenario {
             None => Scene::named(&self.debris.scene),
         };
         r.map_err(|e| ConfigError::Invalid {
-            origin: self.name.clone(),
+            origin: self.origin_name(),
             field: "debris.scene".into(),
             value: format!("{:?}", self.debris.scene),
             reason: e.to_string(),

@@ -107,6 +107,17 @@ pub const PLANNER_METHODS: [&str; 6] =
 /// and scene).
 pub const EDMD_BASELINE: &str = "edmd-poly";
 
+/// The debris predictor's methods (`predictor.method`; `dkrrt predict-eval` measures them).
+pub const PREDICTOR_METHODS: [&str; 7] = [
+    "constant-velocity",
+    "edmd-poly",
+    "edmd-rbf",
+    "koopman-online",
+    "dual-data",
+    "deep-koopman",
+    "deep-koopman-online",
+];
+
 /// What a planning method plans against.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Forecasts {
@@ -738,6 +749,11 @@ impl Scenario {
         (1e9 / self.run.control_hz).round() as u64
     }
 
+    /// How errors name the scenario: the file it was read from, else its `name`.
+    pub fn origin_name(&self) -> String {
+        dkrrt_io::printable(self.origin.as_deref().unwrap_or(&self.name))
+    }
+
     /// Plant ticks in the run.
     pub fn ticks(&self) -> u64 {
         (self.run.duration_s * self.run.control_hz).round() as u64
@@ -746,7 +762,7 @@ impl Scenario {
     /// Checks values and cross-field rules against the arm's limits. The
     /// error names the field, its value and the rule.
     pub fn validate(&self, arm: &ArmLimits) -> Result<(), ConfigError> {
-        let origin = dkrrt_io::printable(self.origin.as_deref().unwrap_or(&self.name));
+        let origin = self.origin_name();
         let c = Checker { origin: &origin };
         for (i, g) in self.robot.gravity.iter().enumerate() {
             if !(g.is_finite() && g.abs() <= 100.0) {
@@ -950,6 +966,13 @@ impl Scenario {
                 "predictor.front_end",
                 format!("{:?}", p.front_end),
                 "must be \"classical\" or \"learned\"",
+            ));
+        }
+        if !PREDICTOR_METHODS.contains(&p.method.as_str()) {
+            return Err(c.fail(
+                "predictor.method",
+                format!("{:?}", p.method),
+                format!("must be one of {}", PREDICTOR_METHODS.join(", ")),
             ));
         }
         if p.fit != "scene" && p.fit != "generic" {
@@ -1204,5 +1227,26 @@ mod tests {
         s.robot.urdf = "arms/x.urdf".into();
         s.base_dir = Some(PathBuf::from("/tmp/sc"));
         assert_eq!(s.urdf_path(), Some(PathBuf::from("/tmp/sc/arms/x.urdf")));
+    }
+
+    #[test]
+    fn a_missing_urdf_or_scene_file_is_named_with_the_scenario_file() {
+        // Not by the scenario's `name` (every copy of the default is called "default").
+        let dir = std::env::temp_dir().join(format!("dkrrt-origin-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("mine.toml");
+        let file = path.to_str().unwrap();
+        let write = |from: &str, to: &str| {
+            assert!(DEFAULT_SCENARIO.contains(from));
+            std::fs::write(&path, DEFAULT_SCENARIO.replace(from, to)).unwrap();
+            Scenario::load(file).unwrap()
+        };
+        let e = write("urdf = \"\"", "urdf = \"nowhere.urdf\"").load_arm().unwrap_err().to_string();
+        assert!(e.starts_with(&format!("scenario {file}: robot.urdf = ")), "{e}");
+        assert!(e.contains("nowhere.urdf"), "{e}");
+        let e =
+            write("scene = \"sparse-slow\"", "scene = \"none.toml\"").load_debris_scene().unwrap_err().to_string();
+        assert!(e.starts_with(&format!("scenario {file}: debris.scene = ")), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -209,11 +209,12 @@ impl CameraConfig {
                 "must be above range_min_m and at most 65.535 m (u16 mm)",
             );
         }
-        if !(self.noise_base_m >= 0.0 && self.noise_base_m.is_finite()) {
-            return fail("noise_base_m", self.noise_base_m, "must be >= 0");
+        // A metre of depth noise is no depth camera (and 1e300 m overflowed the f32 depths).
+        if !(0.0..=1.0).contains(&self.noise_base_m) {
+            return fail("noise_base_m", self.noise_base_m, "must be within [0, 1] m");
         }
-        if !(self.noise_quad_per_m >= 0.0 && self.noise_quad_per_m.is_finite()) {
-            return fail("noise_quad_per_m", self.noise_quad_per_m, "must be >= 0");
+        if !(0.0..=1.0).contains(&self.noise_quad_per_m) {
+            return fail("noise_quad_per_m", self.noise_quad_per_m, "must be within [0, 1] 1/m");
         }
         if !(0.0..=1.0).contains(&self.dropout) {
             return fail("dropout", self.dropout, "must be in [0, 1]");

@@ -224,6 +224,8 @@ fn a_bad_configuration_is_refused_naming_the_field() {
     );
     assert!(bad(CameraConfig { range_max_m: 0.1, ..d }).starts_with("camera.range_max_m"));
     assert!(bad(CameraConfig { noise_base_m: -1.0, ..d }).starts_with("camera.noise_base_m"));
+    assert!(bad(CameraConfig { noise_base_m: 1e300, ..d }).starts_with("camera.noise_base_m"));
+    assert!(bad(CameraConfig { noise_quad_per_m: 2.0, ..d }).starts_with("camera.noise_quad_per_m"));
     assert!(bad(CameraConfig { dropout: 1.5, ..d }).starts_with("camera.dropout"));
     assert!(bad(CameraConfig { rate_hz: 0.0, ..d }).starts_with("camera.rate_hz"));
     assert!(bad(CameraConfig { latency_s: -0.1, ..d }).starts_with("camera.latency_s"));
