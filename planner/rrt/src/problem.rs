@@ -21,6 +21,7 @@ pub enum ProblemShape {
         radius: f64,
     },
     Box {
+        #[serde(deserialize_with = "dkrrt_io::exact::array")]
         half_extents: [f64; 3],
     },
     Capsule {
@@ -39,7 +40,9 @@ pub enum ProblemShape {
 #[serde(deny_unknown_fields)]
 pub struct ProblemPose {
     pub t: f64,
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub p: [f64; 3],
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub q: [f64; 4],
 }
 
@@ -57,10 +60,12 @@ pub struct ProblemObstacle {
 pub struct Problem {
     /// URDF file of the arm; "" = the shipped arm.
     pub urdf: String,
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub start: [f64; NJ],
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub goal: [f64; NJ],
     /// Joint speed limits, rad/s (default: the shipped scenario's motion limits).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "dkrrt_io::exact::opt_array")]
     pub v_max: Option<[f64; NJ]>,
     pub margin_m: f64,
     pub time_limit_s: f64,

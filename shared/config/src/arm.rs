@@ -69,8 +69,9 @@ pub fn contract_limits(model: &ArmModel) -> ContractLimits {
         tau_max: a.tau_max,
         q_margin: 0.05,
         v_factor: 1.5,
-        debris_range_m: 1000.0,
-        debris_speed_max: 100.0,
-        debris_spin_max: 50.0,
+        // A scene's states are bounded by the same numbers (`dkrrt_debris::scene`).
+        debris_range_m: dkrrt_debris::scene::MAX_RANGE_M,
+        debris_speed_max: dkrrt_debris::scene::MAX_SPEED_MPS,
+        debris_spin_max: dkrrt_debris::scene::MAX_SPIN_RADPS,
     }
 }

@@ -8,6 +8,7 @@
 pub mod arm;
 pub mod debris;
 
+use dkrrt_io::exact;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -542,25 +543,6 @@ pub struct ArmLimits {
     pub q_max: [f64; NJ],
     pub v_max: [f64; NJ],
     pub tau_max: [f64; NJ],
-}
-
-/// Fixed-length arrays read exactly: serde's arrays silently drop extra elements
-/// (`kp = [400, 400, 400, 400, 400, 400, -1, nan]` would pass as six gains).
-mod exact {
-    use serde::{de::Error, Deserialize, Deserializer};
-
-    fn exact<E: Error, const N: usize>(v: Vec<f64>) -> Result<[f64; N], E> {
-        let n = v.len();
-        v.try_into().map_err(|_| E::invalid_length(n, &format!("exactly {N} numbers").as_str()))
-    }
-
-    pub fn array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-        exact(Vec::<f64>::deserialize(d)?)
-    }
-
-    pub fn opt_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Option<[f64; N]>, D::Error> {
-        Option::<Vec<f64>>::deserialize(d)?.map(exact).transpose()
-    }
 }
 
 struct Checker<'a> {
@@ -1174,6 +1156,10 @@ mod tests {
         let typo = DEFAULT_SCENARIO.replace("noise_base_m = 0.002", "noise_base = 0.002");
         let e = Scenario::from_toml_str(&typo, "typo.toml").unwrap_err().to_string();
         assert!(e.contains("noise_base") && e.contains("typo.toml"), "{e}");
+        // The camera's vectors are read exactly, as every array of the scenario.
+        let long = DEFAULT_SCENARIO.replace("position_m = [0.0, 0.0, -0.8]", "position_m = [0.0, 0.0, -0.8, 3.0]");
+        let e = Scenario::from_toml_str(&long, "long.toml").unwrap_err().to_string();
+        assert!(e.contains("position_m") && e.contains("exactly 3 numbers"), "{e}");
     }
 
     #[test]

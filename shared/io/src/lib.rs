@@ -6,6 +6,33 @@
 use std::io::Read;
 use std::path::Path;
 
+/// Fixed-length arrays of numbers read exactly, for `#[serde(deserialize_with = ...)]`:
+/// serde's own arrays silently drop extra elements (`p = [0, 0, 0, 5]` would pass as
+/// `[0, 0, 0]`; `kp = [400, 400, 400, 400, 400, 400, -1, nan]` as six gains).
+pub mod exact {
+    use serde::{de::Error, Deserialize, Deserializer};
+
+    fn exact<E: Error, const N: usize>(v: Vec<f64>) -> Result<[f64; N], E> {
+        let n = v.len();
+        v.try_into().map_err(|_| E::invalid_length(n, &format!("exactly {N} numbers").as_str()))
+    }
+
+    /// `[f64; N]`.
+    pub fn array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+        exact(Vec::<f64>::deserialize(d)?)
+    }
+
+    /// `Option<[f64; N]>` (with `#[serde(default)]` when it may be left out).
+    pub fn opt_array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Option<[f64; N]>, D::Error> {
+        Option::<Vec<f64>>::deserialize(d)?.map(exact).transpose()
+    }
+
+    /// `Vec<[f64; N]>` (a list of points).
+    pub fn arrays<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Vec<[f64; N]>, D::Error> {
+        Vec::<Vec<f64>>::deserialize(d)?.into_iter().map(exact).collect()
+    }
+}
+
 /// Size limits per kind of file, bytes.
 pub mod limits {
     /// Scenario and debris-scene TOML files.

@@ -61,8 +61,10 @@ pub struct CameraConfig {
     /// Vertical field of view, rad.
     pub fov_y_rad: f64,
     /// Optical centre in the frame the shapes are posed in, m.
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub position_m: [f64; 3],
     /// Camera-to-frame rotation as a unit quaternion (w, x, y, z).
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub orientation: [f64; 4],
     /// Returns nearer or farther than these are none, m.
     pub range_min_m: f64,

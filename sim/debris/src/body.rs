@@ -18,6 +18,7 @@ pub enum ShapeSpec {
     /// Solid box.
     Box {
         /// Half extents along body x, y, z [m].
+        #[serde(deserialize_with = "dkrrt_io::exact::array")]
         half_extents: [f64; 3],
     },
     /// Rod: capsule along body z.
@@ -30,6 +31,7 @@ pub enum ShapeSpec {
     /// Thin rectangular panel in the body x–y plane.
     Panel {
         /// Half extents along body x and y [m].
+        #[serde(deserialize_with = "dkrrt_io::exact::array")]
         half_extents: [f64; 2],
         /// Full thickness along body z [m].
         thickness: f64,
@@ -37,6 +39,7 @@ pub enum ShapeSpec {
     /// Convex fragment: convex hull of the points (re-centred on its centre of mass).
     Convex {
         /// Hull points in the body frame [m].
+        #[serde(deserialize_with = "dkrrt_io::exact::arrays")]
         points: Vec<[f64; 3]>,
     },
 }

@@ -80,18 +80,19 @@ pub struct DebrisSpec {
     /// Mass [kg].
     pub mass: f64,
     /// Optional principal inertia override (body axes) [kg m²]; default: uniform density.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "dkrrt_io::exact::opt_array")]
     pub inertia: Option<[f64; 3]>,
     /// Initial LVLH position [m].
+    #[serde(deserialize_with = "dkrrt_io::exact::array")]
     pub p: [f64; 3],
     /// Initial LVLH relative velocity [m/s].
-    #[serde(default)]
+    #[serde(default, deserialize_with = "dkrrt_io::exact::array")]
     pub v: [f64; 3],
     /// Initial attitude body → LVLH as (w, x, y, z); normalised on load.
-    #[serde(default = "identity_q")]
+    #[serde(default = "identity_q", deserialize_with = "dkrrt_io::exact::array")]
     pub q: [f64; 4],
     /// Initial inertial angular velocity in body axes [rad/s].
-    #[serde(default)]
+    #[serde(default, deserialize_with = "dkrrt_io::exact::array")]
     pub w: [f64; 3],
 }
 
@@ -106,9 +107,10 @@ pub enum EventSpec {
         /// Target id.
         id: u32,
         /// Velocity change, LVLH [m/s].
+        #[serde(deserialize_with = "dkrrt_io::exact::array")]
         dv: [f64; 3],
         /// Body-rate change, body axes [rad/s].
-        #[serde(default)]
+        #[serde(default, deserialize_with = "dkrrt_io::exact::array")]
         dw: [f64; 3],
     },
     /// A fragment splits off an object (linear momentum conserved).
@@ -124,15 +126,16 @@ pub enum EventSpec {
         /// Fragment mass [kg] (< parent mass).
         mass: f64,
         /// Optional fragment principal inertia [kg m²].
-        #[serde(default)]
+        #[serde(default, deserialize_with = "dkrrt_io::exact::opt_array")]
         inertia: Option<[f64; 3]>,
         /// Fragment offset from the parent centre of mass, parent body axes [m].
-        #[serde(default)]
+        #[serde(default, deserialize_with = "dkrrt_io::exact::array")]
         offset: [f64; 3],
         /// Fragment velocity relative to the parent, LVLH [m/s].
+        #[serde(deserialize_with = "dkrrt_io::exact::array")]
         dv: [f64; 3],
         /// Fragment body rate [rad/s].
-        #[serde(default)]
+        #[serde(default, deserialize_with = "dkrrt_io::exact::array")]
         w: [f64; 3],
     },
 }
@@ -186,6 +189,25 @@ const SPARSE_SLOW: &str = include_str!("../scenes/sparse-slow.toml");
 const DENSE: &str = include_str!("../scenes/dense.toml");
 const FAST_CROSSING: &str = include_str!("../scenes/fast-crossing.toml");
 const TUMBLING_RODS: &str = include_str!("../scenes/tumbling-rods.toml");
+
+/// Bounds of a scene's states, those of the message contract every process checks debris
+/// observations against (`dkrrt_config::arm::contract_limits`): a scene beyond them would be
+/// seen as nothing but rejected messages. Positions from the LVLH origin, m.
+pub const MAX_RANGE_M: f64 = 1000.0;
+/// Speeds (and velocity changes), m/s.
+pub const MAX_SPEED_MPS: f64 = 100.0;
+/// Body rates (and their changes), rad/s.
+pub const MAX_SPIN_RADPS: f64 = 50.0;
+
+/// A finite vector of norm at most `max` (`unit` for the message).
+fn within3(field: &str, v: &[f64; 3], max: f64, unit: &str) -> Result<(), SceneError> {
+    finite3(field, v)?;
+    let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if n > max {
+        return Err(invalid(field, format!("norm {n} exceeds {max} {unit} (the message contract's bound)")));
+    }
+    Ok(())
+}
 
 fn finite3(field: &str, v: &[f64]) -> Result<(), SceneError> {
     if v.iter().all(|x| x.is_finite()) {
@@ -283,9 +305,9 @@ impl Scene {
                 return Err(invalid(f("id"), format!("duplicate id {}", d.id)));
             }
             BodyProps::new(&d.shape, d.mass, d.inertia).map_err(|e| invalid(f(&e.field), e.reason))?;
-            finite3(&f("p"), &d.p)?;
-            finite3(&f("v"), &d.v)?;
-            finite3(&f("w"), &d.w)?;
+            within3(&f("p"), &d.p, MAX_RANGE_M, "m")?;
+            within3(&f("v"), &d.v, MAX_SPEED_MPS, "m/s")?;
+            within3(&f("w"), &d.w, MAX_SPIN_RADPS, "rad/s")?;
             finite3(&f("q"), &d.q)?;
             let qn = d.q.iter().map(|x| x * x).sum::<f64>().sqrt();
             if qn < 1e-9 {
@@ -311,8 +333,8 @@ impl Scene {
                     if !ids.contains(id) {
                         return Err(invalid(f("id"), format!("no debris with id {id} exists at t = {t}")));
                     }
-                    finite3(&f("dv"), dv)?;
-                    finite3(&f("dw"), dw)?;
+                    within3(&f("dv"), dv, MAX_SPEED_MPS, "m/s")?;
+                    within3(&f("dw"), dw, MAX_SPIN_RADPS, "rad/s")?;
                 }
                 EventSpec::Split { id, new_id, fragment, mass, inertia, offset, dv, w, .. } => {
                     let Some(k) = ids.iter().position(|x| x == id) else {
@@ -332,9 +354,9 @@ impl Scene {
                     if *mass >= masses[k] {
                         return Err(invalid(f("mass"), "fragment mass must be smaller than the parent's"));
                     }
-                    finite3(&f("offset"), offset)?;
-                    finite3(&f("dv"), dv)?;
-                    finite3(&f("w"), w)?;
+                    within3(&f("offset"), offset, MAX_RANGE_M, "m")?;
+                    within3(&f("dv"), dv, MAX_SPEED_MPS, "m/s")?;
+                    within3(&f("w"), w, MAX_SPIN_RADPS, "rad/s")?;
                     masses[k] -= mass;
                     ids.push(*new_id);
                     masses.push(*mass);

@@ -47,6 +47,27 @@ fn scene_errors_name_the_field() {
         "name = \"x\"\n[[debris]]\nid = 0\nmass = 1.0\nshape = { kind = \"sphere\", radius = 0.1 }\n";
     let e = Scene::from_toml(missing_p).unwrap_err().to_string();
     assert!(e.contains("`p`") || e.contains(" p"), "{e}");
+    // A vector of the wrong length is refused, not cut to size (`p = [0, 0, 0, 5]` was read
+    // as an object at the LVLH origin), in the shapes too.
+    let sphere = |extra: &str| {
+        format!("name = \"x\"\n[[debris]]\nid = 0\nmass = 1.0\nshape = {{ kind = \"sphere\", radius = 0.1 }}\n{extra}\n")
+    };
+    for extra in ["p = [5.0, 0.0, 0.0, 9.0]", "p = [5.0, 0.0, 0.0]\nq = [1.0, 0.0, 0.0, 0.0, 0.0]"] {
+        let e = Scene::from_toml(&sphere(extra)).unwrap_err().to_string();
+        assert!(e.contains("exactly"), "{extra}: {e}");
+    }
+    let e = Scene::from_toml(&base.replacen("half_extents = [", "half_extents = [0.1, ", 1)).unwrap_err();
+    assert!(e.to_string().contains("exactly"), "{e}");
+    // States beyond the message contract's bounds (every observation of them rejected).
+    for (extra, field) in [
+        ("p = [1e300, 0.0, 0.0]", "debris[0].p"),
+        ("p = [5.0, 0.0, 0.0]\nv = [0.0, 150.0, 0.0]", "debris[0].v"),
+        ("p = [5.0, 0.0, 0.0]\nw = [0.0, 0.0, 1e300]", "debris[0].w"),
+    ] {
+        let e = Scene::from_toml(&sphere(extra)).unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains("exceeds"), "{extra}: {e}");
+    }
+    assert!(Scene::from_toml(&sphere("p = [999.0, 0.0, 0.0]\nv = [0.0, 99.0, 0.0]\nw = [49.0, 0.0, 0.0]")).is_ok());
 }
 
 #[test]
