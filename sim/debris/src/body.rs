@@ -90,6 +90,19 @@ fn pos(name: &str, v: f64) -> Result<(), PropsError> {
     }
 }
 
+/// The largest dimension of a debris shape (a half extent, radius or hull point's distance), m:
+/// beyond it the shape's volume overflows or it is no object near an arm.
+pub const MAX_SIZE_M: f64 = 100.0;
+
+/// A dimension of a shape: finite, > 0 and at most [`MAX_SIZE_M`].
+fn size(name: &str, v: f64) -> Result<(), PropsError> {
+    pos(name, v)?;
+    if v > MAX_SIZE_M {
+        return Err(perr(name, format!("must be at most {MAX_SIZE_M} m (got {v})")));
+    }
+    Ok(())
+}
+
 impl BodyProps {
     /// Build from a shape and a mass. The inertia is that of the shape with uniform density
     /// unless `principal_inertia` (body-axis diagonal, kg m²) is given.
@@ -97,29 +110,35 @@ impl BodyProps {
         pos("mass", mass)?;
         let shape = match spec {
             ShapeSpec::Sphere { radius } => {
-                pos("shape.radius", *radius)?;
+                size("shape.radius", *radius)?;
                 SharedShape::ball(*radius)
             }
             ShapeSpec::Box { half_extents: h } => {
                 for (i, v) in h.iter().enumerate() {
-                    pos(&format!("shape.half_extents[{i}]"), *v)?;
+                    size(&format!("shape.half_extents[{i}]"), *v)?;
                 }
                 SharedShape::cuboid(h[0], h[1], h[2])
             }
             ShapeSpec::Rod { half_length, radius } => {
-                pos("shape.half_length", *half_length)?;
-                pos("shape.radius", *radius)?;
+                size("shape.half_length", *half_length)?;
+                size("shape.radius", *radius)?;
                 SharedShape::capsule_z(*half_length, *radius)
             }
             ShapeSpec::Panel { half_extents: h, thickness } => {
-                pos("shape.half_extents[0]", h[0])?;
-                pos("shape.half_extents[1]", h[1])?;
-                pos("shape.thickness", *thickness)?;
+                size("shape.half_extents[0]", h[0])?;
+                size("shape.half_extents[1]", h[1])?;
+                size("shape.thickness", *thickness)?;
                 SharedShape::cuboid(h[0], h[1], 0.5 * thickness)
             }
             ShapeSpec::Convex { points } => {
                 if points.len() < 4 {
                     return Err(perr("shape.points", "a convex fragment needs at least 4 points"));
+                }
+                for (i, p) in points.iter().enumerate() {
+                    let r = p.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    if !(r.is_finite() && r <= MAX_SIZE_M) {
+                        return Err(perr(&format!("shape.points[{i}]"), format!("must be finite, within {MAX_SIZE_M} m")));
+                    }
                 }
                 let pts: Vec<PVec> = points.iter().map(|p| PVec::new(p[0], p[1], p[2])).collect();
                 let hull = SharedShape::convex_hull(&pts)
