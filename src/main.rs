@@ -513,14 +513,19 @@ fn main() -> ExitCode {
         }
         Cmd::Goal { common, run, q, pose, wait } => {
             use dkrrt_planner::goal_cli::{goal_message, send, GoalRequest};
-            let sc = scenario(&common)?;
+            if !(wait.is_finite() && wait >= 0.0) {
+                return Err(format!("--wait {wait}: must be a finite number of seconds >= 0"));
+            }
             let req = match (q, pose) {
                 (Some(q), None) if q.len() == 6 => GoalRequest::Joint(std::array::from_fn(|i| q[i])),
                 (None, Some(p)) if p.len() == 7 => {
                     GoalRequest::Pose([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
                 }
+                (Some(q), None) => return Err(format!("--q: {} numbers given; give the 6 joint positions (rad)", q.len())),
+                (None, Some(p)) => return Err(format!("--pose: {} numbers given; give 7: x,y,z (m), qw,qx,qy,qz", p.len())),
                 _ => return Err("goal: give --q (6 joint positions) or --pose (x,y,z,qw,qx,qy,qz)".into()),
             };
+            let sc = scenario(&common)?;
             let g = goal_message(&sc, req, 1).map_err(|e| format!("goal: {e}"))?;
             let n = send(&run, g, wait).map_err(|e| format!("goal: {e}"))?;
             eprintln!("goal: sent to {n} subscriber(s) of run {run:?}");

@@ -228,7 +228,7 @@ pub fn predict_eval(
     };
     let visual = match visual_model {
         Some("none") => None,
-        Some(p) => Some(dkrrt_visual::file::load(Path::new(p))?),
+        Some(p) => Some(dkrrt_visual::file::load(Path::new(p)).map_err(|e| format!("--visual-model {e}"))?),
         None => Some(dkrrt_planner::predict::embedded_visual()?),
     };
     // The learned front end exists only with a visual model.

@@ -604,6 +604,17 @@ fn bad_command_lines_are_refused_up_front() {
         assert_eq!(code, Some(2));
         assert!(err.contains("run.duration_s") && !err.contains("--goal"), "{err}");
     }
+    // `dkrrt goal`: a wrong count names the flag and the count; a wait that is no time is
+    // refused (NaN waited for nothing and blamed the run).
+    let (code, err) = run(&["goal", "--q", "1,2,3", "--run", "x"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--q: 3 numbers"), "{err}");
+    let (code, err) = run(&["goal", "--pose", "1,2", "--run", "x"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--pose: 2 numbers"), "{err}");
+    let (code, err) = run(&["goal", "--q", "0,0,0,0,0,0", "--wait", "nan", "--run", "x"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--wait NaN"), "{err}");
 }
 
 /// `dkrrt eval` runs in lockstep: `--mode realtime` is refused rather than ignored; a run
