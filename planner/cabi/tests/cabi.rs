@@ -192,6 +192,15 @@ fn a_path_is_timed_and_judged_as_dkrrt_plan_judges_its_own() {
     assert!(d > 0.0);
     assert_eq!(passed, 0);
     assert!(clear < -0.05, "{clear}");
+    // A waypoint that is no configuration (NaN, or beyond the joint limits) is never a timed
+    // path that passed.
+    for bad in [[f64::NAN; NJ], [9.0, 0.0, 0.0, 0.0, 0.0, 0.0]] {
+        let path = [START, bad, TURNED];
+        (clear, passed) = (f64::NAN, -1);
+        // SAFETY: a live handle, 3 × NJ values, valid outputs.
+        let d = unsafe { dk_path_duration(h, path.as_ptr().cast(), 3, &mut clear, &mut passed) };
+        assert!(d == -2.0 || (passed == 0 && d.is_finite()), "{bad:?}: duration {d}, passed {passed}");
+    }
     // SAFETY: a live handle.
     unsafe { dk_problem_close(h) };
 }
