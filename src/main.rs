@@ -521,8 +521,12 @@ fn main() -> ExitCode {
                 (None, Some(p)) if p.len() == 7 => {
                     GoalRequest::Pose([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]])
                 }
-                (Some(q), None) => return Err(format!("--q: {} numbers given; give the 6 joint positions (rad)", q.len())),
-                (None, Some(p)) => return Err(format!("--pose: {} numbers given; give 7: x,y,z (m), qw,qx,qy,qz", p.len())),
+                (Some(q), None) => {
+                    return Err(format!("--q: {} numbers given; give the 6 joint positions (rad)", q.len()))
+                }
+                (None, Some(p)) => {
+                    return Err(format!("--pose: {} numbers given; give 7: x,y,z (m), qw,qx,qy,qz", p.len()))
+                }
                 _ => return Err("goal: give --q (6 joint positions) or --pose (x,y,z,qw,qx,qy,qz)".into()),
             };
             let sc = scenario(&common)?;

@@ -465,7 +465,11 @@ fn a_broken_scenario_is_refused_naming_the_field() {
     // any process starts too, naming the scenario file and the field: not a predictor that
     // exits at start-up, is restarted three times and fails the run 20 s later.
     for (from, to, field) in [
-        ("method = \"deep-koopman-online\"", "method = \"crystal-ball\"", "predictor.method = \"crystal-ball\""),
+        (
+            "method = \"deep-koopman-online\"",
+            "method = \"crystal-ball\"",
+            "predictor.method = \"crystal-ball\"",
+        ),
         ("\nmodel = \"\"", "\nmodel = \"missing.dkm\"", "predictor.model = "),
     ] {
         assert!(dkrrt_config::DEFAULT_SCENARIO.contains(from), "{from}");

@@ -71,7 +71,10 @@ fn a_malformed_problem_is_refused_naming_the_field() {
         (good.replace("\"seed\": 1,", "\"seed\": 1, \"extra\": 2,"), "unknown field"),
         (good.replace("\"kind\": \"sphere\"", "\"kind\": \"torus\""), "torus"),
         // Vectors of the wrong length, with the number they need.
-        (good.replace("[0.0, -0.5, 1.0, 0.0, 0.5, 0.0]", "[0.0, -0.5, 1.0, 0.0, 0.5, 0.0, 7.0]"), "exactly 6 numbers"),
+        (
+            good.replace("[0.0, -0.5, 1.0, 0.0, 0.5, 0.0]", "[0.0, -0.5, 1.0, 0.0, 0.5, 0.0, 7.0]"),
+            "exactly 6 numbers",
+        ),
         (good.replace("[5.0, 0.0, 0.0]", "[5.0, 0.0, 0.0, 1.0]"), "exactly 3 numbers"),
     ];
     for (i, (text, field)) in cases.iter().enumerate() {

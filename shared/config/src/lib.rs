@@ -1157,7 +1157,8 @@ mod tests {
         let e = Scenario::from_toml_str(&typo, "typo.toml").unwrap_err().to_string();
         assert!(e.contains("noise_base") && e.contains("typo.toml"), "{e}");
         // The camera's vectors are read exactly, as every array of the scenario.
-        let long = DEFAULT_SCENARIO.replace("position_m = [0.0, 0.0, -0.8]", "position_m = [0.0, 0.0, -0.8, 3.0]");
+        let long =
+            DEFAULT_SCENARIO.replace("position_m = [0.0, 0.0, -0.8]", "position_m = [0.0, 0.0, -0.8, 3.0]");
         let e = Scenario::from_toml_str(&long, "long.toml").unwrap_err().to_string();
         assert!(e.contains("position_m") && e.contains("exactly 3 numbers"), "{e}");
     }
@@ -1230,8 +1231,10 @@ mod tests {
         let e = write("urdf = \"\"", "urdf = \"nowhere.urdf\"").load_arm().unwrap_err().to_string();
         assert!(e.starts_with(&format!("scenario {file}: robot.urdf = ")), "{e}");
         assert!(e.contains("nowhere.urdf"), "{e}");
-        let e =
-            write("scene = \"sparse-slow\"", "scene = \"none.toml\"").load_debris_scene().unwrap_err().to_string();
+        let e = write("scene = \"sparse-slow\"", "scene = \"none.toml\"")
+            .load_debris_scene()
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with(&format!("scenario {file}: debris.scene = ")), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }

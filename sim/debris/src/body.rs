@@ -137,7 +137,10 @@ impl BodyProps {
                 for (i, p) in points.iter().enumerate() {
                     let r = p.iter().map(|x| x * x).sum::<f64>().sqrt();
                     if !(r.is_finite() && r <= MAX_SIZE_M) {
-                        return Err(perr(&format!("shape.points[{i}]"), format!("must be finite, within {MAX_SIZE_M} m")));
+                        return Err(perr(
+                            &format!("shape.points[{i}]"),
+                            format!("must be finite, within {MAX_SIZE_M} m"),
+                        ));
                     }
                 }
                 let pts: Vec<PVec> = points.iter().map(|p| PVec::new(p[0], p[1], p[2])).collect();

@@ -67,9 +67,11 @@ fn scene_errors_name_the_field() {
         let e = Scene::from_toml(&sphere(extra)).unwrap_err().to_string();
         assert!(e.contains(field) && e.contains("exceeds"), "{extra}: {e}");
     }
-    assert!(Scene::from_toml(&sphere("p = [999.0, 0.0, 0.0]\nv = [0.0, 99.0, 0.0]\nw = [49.0, 0.0, 0.0]")).is_ok());
+    assert!(Scene::from_toml(&sphere("p = [999.0, 0.0, 0.0]\nv = [0.0, 99.0, 0.0]\nw = [49.0, 0.0, 0.0]"))
+        .is_ok());
     // A shape beyond the largest size (its volume overflowed: "shape volume ... got 0").
-    let e = Scene::from_toml(&sphere("p = [5.0, 0.0, 0.0]").replace("radius = 0.1", "radius = 1e300")).unwrap_err();
+    let e = Scene::from_toml(&sphere("p = [5.0, 0.0, 0.0]").replace("radius = 0.1", "radius = 1e300"))
+        .unwrap_err();
     assert!(e.to_string().contains("debris[0].shape.radius") && e.to_string().contains("at most"), "{e}");
 }
 
