@@ -78,8 +78,9 @@ fn a_sample_that_sees_nothing_is_an_empty_frame() {
     sc.debris.latency_s = 0.03;
     sc.debris.latency_jitter_s = 0.0;
     sc.debris.dropout = 0.0;
-    // Far beyond the sensor's range (nothing seen), then near (seen).
-    for (tag, p, seen) in [("empty-far", [5000.0, 0.0, 0.0], false), ("empty-near", [3.0, 2.0, 0.0], true)] {
+    // Beyond the sensor's range (500 m; within the scene's 1000 m bound: nothing seen), then
+    // near (seen).
+    for (tag, p, seen) in [("empty-far", [800.0, 0.0, 0.0], false), ("empty-near", [3.0, 2.0, 0.0], true)] {
         sc.debris.scene = sphere_scene(tag, p, 0.2).display().to_string();
         let mut side = DebrisSide::new(&sc, &ArmModel::default_arm()).unwrap();
         let mut frame = <DebrisObservation as Zeroed>::zeroed();
