@@ -66,13 +66,24 @@ fn over_udp_with_delay_and_loss_the_arm_is_tracked_as_well_as_with_the_simulator
     let dir = std::env::temp_dir().join(format!("dkrrt-hil-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // The shipped HIL scenario (0.5 ms each way + 0.1 ms jitter, 1 % loss, 0.5 % duplicated
-    // and reordered), 6 s, tolerant of a stalling VM (20 stale ticks before a safe hold).
+    // and reordered), 6 s, tolerant of a stalling VM: 50 stale ticks before a safe hold and 50
+    // ticks without a command before the arm (simulated or emulated) brakes. With 20 of each, a clean-clone CI run
+    // failed once (2026-11-28): a 27 ms stall of the loaded 2-core VM (wake latency max 27 ms,
+    // round trip max 42 ms) put the tracker in safe hold and the arm's brakes on. What this test
+    // shows is the tracking over a lossy link; the safe holds are tested on their own.
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/hil-lossy.toml");
     let text = std::fs::read_to_string(shipped).unwrap();
     let tolerant = text
-        .replace("stale_ticks = 10 ", "stale_ticks = 20 ")
+        .replace("stale_ticks = 10 ", "stale_ticks = 50 ")
+        .replace("command_timeout_ticks = 20 ", "command_timeout_ticks = 50 ")
+        .replace("abort_after = 20 ", "abort_after = 50 ")
         .replace("duration_s = 8.0", "duration_s = 6.0");
-    assert!(tolerant.contains("stale_ticks = 20 ") && tolerant.contains("duration_s = 6.0"));
+    assert!(
+        tolerant.contains("stale_ticks = 50 ")
+            && tolerant.contains("command_timeout_ticks = 50 ")
+            && tolerant.contains("abort_after = 50 ")
+            && tolerant.contains("duration_s = 6.0")
+    );
     let sc = dir.join("hil-lossy.toml");
     std::fs::write(&sc, tolerant).unwrap();
     let (ok_sim, sim, text_sim) = launch(&sc, &[], "sim");

@@ -23,6 +23,16 @@
 //! [`Checker::max_samples`] samples (200 000): one that would is not clear, so a check ends
 //! whatever the obstacles' speeds.
 //!
+//! **Conservative advancement, with two gaps per track.** Each sample gives, per track, a
+//! lower bound on the gap to its inflated shape and one on the gap to its bounding ball
+//! (about its centre, of radius its reach plus `max(σ, σ_pos)` plus the inflation: the ball
+//! holds the inflated shape at every attitude). The first closes at most at the track's
+//! surface speed, rotation included, plus the arm's; the second at `|v| + dσ/dt` plus the
+//! arm's ([`WorldInTime::ball_speed_within`]): a ball about the centre turns into itself. The
+//! separation stays above both bounds, so the next sample may wait for whichever lasts longer
+//! (then `δ / v` more, as above). A tumbling rod whose ball stays clear of the arm no longer
+//! spaces the samples by its spin.
+//!
 //! **A start inside the inflation.** The obstacles are inflated by the forecast's bound plus a
 //! margin, so a newer forecast can put the arm *inside* an inflated obstacle while the object
 //! itself is still away. Refusing every motion from there leaves the arm where the object is
@@ -275,6 +285,14 @@ impl Checker {
         let mut closing = [0.0f64; MAX_TRACKS];
         let mask = world.near_speeds(t0, t1c, &centre, radius + self.cap, half, &mut closing);
         closing.iter_mut().for_each(|v| *v += v_arm);
+        // And its bounding ball's gap (no rotation: slower for a tumbling shape).
+        let mut closing_ball = [0.0f64; MAX_TRACKS];
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            closing_ball[i] = world.ball_speed_within(i, t0, t1c) + v_arm;
+        }
         let mut t = t0;
         loop {
             let floor = self.floor_at(t);
@@ -298,7 +316,7 @@ impl Checker {
             // samples may skip to its end (or as far as c allows past it). The nearest track
             // in time sets the step; a track far away no longer does, however fast.
             let until = self.relief.map_or(t, |r| r.1) - t;
-            let mut step = self.next_step(mask, &closing, floor, until);
+            let mut step = self.next_step(mask, &closing, &closing_ball, floor, until);
             if step < REFRESH_STEP_S {
                 // The stretch's speeds bound every track over all of it; one fast only
                 // somewhere (a problem obstacle's fast leg) would space every sample that
@@ -309,8 +327,9 @@ impl Checker {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
                     closing[i] = world.speed_within(i, t, t1c) + v_arm;
+                    closing_ball[i] = world.ball_speed_within(i, t, t1c) + v_arm;
                 }
-                step = self.next_step(mask, &closing, floor, until);
+                step = self.next_step(mask, &closing, &closing_ball, floor, until);
             }
             if out.samples >= self.max_samples {
                 // Not verified within the samples a check may take: not clear.
@@ -332,8 +351,34 @@ impl Checker {
     }
 
     /// The step to the next sample of [`Checker::check_motion`] (its conservative advancement)
-    /// from each track's gap at the last sample and its closing speed.
-    fn next_step(&self, mask: u64, closing: &[f64; MAX_TRACKS], floor: f64, until: f64) -> f64 {
+    /// from each track's gaps at the last sample (to its inflated shape, and to its bounding
+    /// ball) and their closing speeds.
+    fn next_step(
+        &self,
+        mask: u64,
+        closing: &[f64; MAX_TRACKS],
+        closing_ball: &[f64; MAX_TRACKS],
+        floor: f64,
+        until: f64,
+    ) -> f64 {
+        // How long a gap `c` closing at `v` keeps the separation at or above the floor (0
+        // after the relief ends `until` from now).
+        let free = |c: f64, v: f64| {
+            if v <= 1e-12 {
+                return if c < floor {
+                    0.0
+                } else if c >= 0.0 {
+                    f64::INFINITY
+                } else {
+                    until
+                };
+            }
+            if (c - floor) / v < until {
+                (c - floor) / v
+            } else {
+                until.max(c / v)
+            }
+        };
         let mut step = MAX_STEP_S;
         let mut m = mask;
         while m != 0 {
@@ -343,9 +388,9 @@ impl Checker {
             if v <= 1e-9 {
                 continue;
             }
-            let c = self.gaps.gap[i];
-            let free = if (c - floor) / v < until { (c - floor) / v } else { until.max(c / v) };
-            step = step.min(free.max(0.0) + self.delta / v);
+            // The separation stays above either gap's bound, whichever lasts longer.
+            let f = free(self.gaps.gap[i], v).max(free(self.gaps.ball[i], closing_ball[i].min(v)));
+            step = step.min(f.max(0.0) + self.delta / v);
         }
         step
     }

@@ -63,6 +63,10 @@ struct Track {
     speed: f64,
     /// The same per interval between consecutive poses (`speeds[k]`: poses `k`, `k + 1`), m/s.
     speeds: Vec<f64>,
+    /// Per interval, the largest speed of the surface of the track's bounding ball (centre
+    /// `p`, radius `reach + max(σ, σ_pos)` + inflation): `|Δp| + max(|Δσ|, |Δσ_pos|)` over
+    /// the interval's length. No rotation term: a ball about the centre turns into itself.
+    ball_speeds: Vec<f64>,
     /// Growth rate of the position bound (and of σ) after the last pose, m/s.
     sigma_rate: f64,
     /// The poses' spacing when uniform (forecasts: their step), s; 0: not uniform.
@@ -110,6 +114,7 @@ impl WorldInTime {
                 arcs: Vec::with_capacity(FORECAST_STEPS + 1),
                 speed: 0.0,
                 speeds: Vec::with_capacity(FORECAST_STEPS + 1),
+                ball_speeds: Vec::with_capacity(FORECAST_STEPS + 1),
                 sigma_rate: 0.0,
                 grid_dt: 0.0,
             })
@@ -218,8 +223,9 @@ impl WorldInTime {
     /// track `i`), and the largest speed among them over `[t0, t1]`
     /// ([`WorldInTime::speed_within`]). Conservative: at the window's middle a track's
     /// inflated shape lies within its bounding radius + σ + margin + extra of its centre, and
-    /// centre and σ together move at most that speed over the window, so over the half window
-    /// it stays inside that sphere grown by speed × half window.
+    /// centre and σ together move at most at its ball's speed over the window
+    /// ([`WorldInTime::ball_speed_within`]: no rotation), so over the half window it stays
+    /// inside that sphere grown by that speed × half window.
     pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
         let mut speeds = [0.0; MAX_TRACKS];
         let mask = self.near_speeds(t0, t1, centre, radius, extra, &mut speeds);
@@ -241,14 +247,15 @@ impl WorldInTime {
         let mut mask = 0u64;
         speeds.fill(0.0);
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
-            let (p, _, sigma, sigma_pos, _) = pose_at(tr, tm);
-            let speed = speed_within(tr, t0, t1);
-            let r = tr.radius + sigma.max(sigma_pos) + self.margin + extra + speed * half;
-            let d =
-                ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2)).sqrt();
-            if !(d - r - radius > 0.0) {
+            let s = state_at(tr, tm);
+            let r = tr.radius
+                + s.sigma.max(s.sigma_pos)
+                + self.margin
+                + extra
+                + within(tr, &tr.ball_speeds, t0, t1) * half;
+            if !(dist3(&s.p, centre) - r - radius > 0.0) {
                 mask |= 1 << i;
-                speeds[i] = speed;
+                speeds[i] = speed_within(tr, t0, t1);
             }
         }
         mask
@@ -261,6 +268,15 @@ impl WorldInTime {
     /// window wholly before the first or after the last). At most [`WorldInTime::max_speed`].
     pub fn speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
         speed_within(&self.tracks[i], t0, t1)
+    }
+
+    /// The largest speed of any point of the surface of track `i`'s bounding ball over
+    /// `[t0, t1]`, m/s: the ball about its centre of radius `reach + max(σ, σ_pos)` plus the
+    /// inflation, which holds the inflated shape at any attitude (the gaps of
+    /// [`Gaps::ball`]). As [`WorldInTime::speed_within`] without the rotation: at most it.
+    pub fn ball_speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
+        let tr = &self.tracks[i];
+        within(tr, &tr.ball_speeds, t0, t1)
     }
 
     /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
@@ -311,6 +327,7 @@ impl WorldInTime {
                 if g_arm >= nr.cap {
                     if let Some(g) = gaps.as_deref_mut() {
                         g.gap[i] = g_arm;
+                        g.ball[i] = g_arm;
                     }
                     continue;
                 }
@@ -323,6 +340,7 @@ impl WorldInTime {
                     nr.arm.iter().map(|c| dist3(&s.p, &c.centre) - c.bound - r).fold(f64::INFINITY, f64::min);
                 if let Some(g) = gaps.as_deref_mut() {
                     g.gap[i] = g_arm.max(g_caps);
+                    g.ball[i] = g.gap[i];
                     g.track[out.len().min(MAX_TRACKS - 1)] = i as u8;
                 }
                 if !(g_caps < nr.cap + 1e-9) {
@@ -383,6 +401,7 @@ fn finish(t: &mut Track) {
     }
     let mut speed: f64 = 0.0;
     t.speeds.clear();
+    t.ball_speeds.clear();
     for w in t.poses.windows(2) {
         let dt = w[1].t - w[0].t;
         let dp = ((w[1].p[0] - w[0].p[0]).powi(2)
@@ -392,6 +411,7 @@ fn finish(t: &mut Track) {
         let da = quat_angle(&w[0].q, &w[1].q);
         let ds = (w[1].sigma - w[0].sigma).abs();
         t.speeds.push((dp + da * r + ds) / dt);
+        t.ball_speeds.push((dp + ds.max((w[1].sigma_pos - w[0].sigma_pos).abs())) / dt);
         speed = speed.max((dp + da * r + ds) / dt);
     }
     t.sigma_rate = 0.0;
@@ -425,13 +445,17 @@ fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 pub struct Gaps {
     /// `gap[i]`: every point of track `i`'s inflated shape is at least this far from the arm, m.
     pub gap: [f64; MAX_TRACKS],
+    /// `ball[i]`: the same for the ball about track `i`'s centre of radius `reach +
+    /// max(σ, σ_pos)` + the inflation, which holds its inflated shape at every attitude (at
+    /// most `gap[i]`; its surface moves at [`WorldInTime::ball_speed_within`]), m.
+    pub ball: [f64; MAX_TRACKS],
     /// `track[k]`: the track of the `k`-th obstacle written.
     pub track: [u8; MAX_TRACKS],
 }
 
 impl Default for Gaps {
     fn default() -> Self {
-        Gaps { gap: [f64::INFINITY; MAX_TRACKS], track: [0; MAX_TRACKS] }
+        Gaps { gap: [f64::INFINITY; MAX_TRACKS], ball: [f64::INFINITY; MAX_TRACKS], track: [0; MAX_TRACKS] }
     }
 }
 
@@ -494,8 +518,15 @@ fn interval_of(tr: &Track, t: f64) -> usize {
 }
 
 fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
+    within(tr, &tr.speeds, t0, t1)
+}
+
+/// The largest of `speeds` (per interval) over the intervals overlapping `[t0, t1]`, with the
+/// extrapolation's σ growth past the last pose (see [`WorldInTime::speed_within`]).
+fn within(tr: &Track, speeds: &[f64], t0: f64, t1: f64) -> f64 {
     let n = tr.poses.len();
     if n < 2 {
+        // No interval: only σ grows (extrapolated), or nothing moves (held).
         return tr.speed;
     }
     // A problem obstacle stands still before its first pose and after its last.
@@ -503,9 +534,9 @@ fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
         return 0.0;
     }
     let (ka, kb) = (interval_of(tr, t0), interval_of(tr, t1.max(t0)));
-    let mut v = tr.speeds[ka..=kb].iter().fold(0.0f64, |m, &x| m.max(x));
+    let mut v = speeds[ka..=kb].iter().fold(0.0f64, |m, &x| m.max(x));
     if tr.after == After::Extrapolate && t1 > tr.poses[n - 1].t {
-        v = v.max(tr.speeds[n - 2] + tr.sigma_rate);
+        v = v.max(speeds[n - 2] + tr.sigma_rate);
     }
     v
 }

@@ -667,6 +667,7 @@ fn each_tracks_gap_is_a_lower_bound_on_its_clearance() {
                 w.obstacles_within(t, 0.015, 1 << i, None, &mut one);
                 let truth = dkrrt_collision::clearance(&caps, &one, f64::NEG_INFINITY, f64::INFINITY);
                 assert!(gaps.gap[i] <= truth + 1e-9, "track {i} at {t}: gap {} > {truth}", gaps.gap[i]);
+                assert!(gaps.ball[i] <= gaps.gap[i], "track {i} at {t}: its ball nearer than its shape");
             }
             for (k, o) in obs.iter().enumerate() {
                 assert_eq!(w.id(gaps.track[k] as usize), o.id);
@@ -830,4 +831,200 @@ fn a_track_is_as_far_as_the_farther_of_its_shape_and_its_sphere() {
     let c = ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY);
     let ball_gap = 1.2 - (h + r + sigma_pos + margin);
     assert!(c > 0.0 && c <= ball_gap + 1e-9, "clearance {c:.3}, the sphere's gap {ball_gap:.3}");
+}
+
+#[test]
+fn a_tracks_ball_speed_over_a_window_bounds_its_ball_there() {
+    // The bounding ball (centre, reach + max(σ, σ_pos)) moves no faster than
+    // `ball_speed_within`, which is never above `speed_within` and is below it for a turning
+    // shape.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(23);
+    let (mut slower, mut windows) = (0, 0);
+    for _ in 0..30 {
+        let w = random_world(&mut rng, 6);
+        for i in 0..w.len() {
+            for _ in 0..20 {
+                let a = rng.random_range(-0.5..5.5);
+                let b = a + rng.random_range(0.0..1.5);
+                let vb = w.ball_speed_within(i, a, b);
+                let v = w.speed_within(i, a, b);
+                assert!(vb <= v + 1e-12, "track {i} in [{a}, {b}]: ball {vb} > {v}");
+                windows += 1;
+                slower += (vb < 0.9 * v) as usize;
+                let ball = |t: f64| {
+                    let (p, _, s, sp, _) = w.pose_at(i, t);
+                    (p, s.max(sp))
+                };
+                let (mut pp, mut rp) = ball(a);
+                for k in 1..=50 {
+                    let t = a + (b - a) * k as f64 / 50.0;
+                    let (p, r) = ball(t);
+                    let moved = ((p[0] - pp[0]).powi(2) + (p[1] - pp[1]).powi(2) + (p[2] - pp[2]).powi(2))
+                        .sqrt()
+                        + (r - rp).abs();
+                    assert!(moved <= vb * (b - a) / 50.0 + 1e-9, "track {i} in [{a}, {b}]: {moved} > {vb}");
+                    (pp, rp) = (p, r);
+                }
+            }
+        }
+    }
+    assert!(slower * 3 > windows, "the ball is rarely slower than the shape: {slower}/{windows}");
+}
+
+/// A rod (half length 0.6 m, radius 0.05 m, no bound) spinning at 10 rad/s about the direction
+/// `u` square to link 4 of the arm resting at `START`, its centre `d` from the link's centre
+/// along `u`, over 4 s.
+fn rod_spinning_beside_link4(d: f64) -> WorldInTime {
+    let (k, u) = link4();
+    let p = [k.centre[0] + d * u[0], k.centre[1] + d * u[1], k.centre[2]];
+    // Spin about z: the rod (body z) starts along x and sweeps the horizontal plane, which
+    // holds `u`; a quarter turn about y first lays it down.
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let lay = [s, 0.0, s, 0.0];
+    let poses: Vec<TimedPose> = (0..=40)
+        .map(|i| {
+            let t = 0.1 * i as f64;
+            let h = 0.5 * 10.0 * t;
+            let spin = [h.cos(), 0.0, 0.0, h.sin()];
+            TimedPose { t, p, q: dkrrt_collision::pose::quat_mul(&spin, &lay), sigma: 0.0, sigma_pos: 0.0 }
+        })
+        .collect();
+    let mut w = WorldInTime::new(0.0);
+    w.push_track(1, DebrisShape::capsule(0.6, 0.05), &poses, After::Hold).unwrap();
+    w
+}
+
+#[test]
+fn a_spinning_rod_whose_ball_stays_clear_is_sampled_by_its_ball_and_one_that_sweeps_in_is_hit() {
+    let (k, _) = link4();
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    // The rod's ball (0.65 m) stays 0.2 m off the link: its spin (6.5 m/s at the tips) no
+    // longer spaces the samples. By the spin they would be at most (gap + δ) / 6.5 m/s apart,
+    // the rod's gap to the link being at most 0.8 m (its centre's, less its radius).
+    let w = rod_spinning_beside_link4(k.r + 0.65 + 0.2);
+    let r = ch.check(&w, 0.0, 4.0, 4.0, false, |_| START);
+    let by_spin = (4.0 * 6.5 / (0.8 + ch.delta())).floor() as u32;
+    assert!(r.ok && r.samples * 2 <= by_spin, "{r:?} ({by_spin} samples by the spin)");
+    // 0.3 m nearer, the tips sweep into the link twice a turn: found where a check every
+    // millisecond first finds it.
+    let w = rod_spinning_beside_link4(k.r + 0.65 - 0.1);
+    let first = (0..=4000).map(|i| i as f64 * 1e-3).find(|&t| ch.clearance_at(&w, &START, t, 0.0, 0.0) < 0.0);
+    let first = first.expect("set-up: the rod sweeps into the link");
+    let r = ch.check(&w, 0.0, 4.0, 4.0, false, |_| START);
+    assert!(!r.ok && r.t_fail <= first + 1e-3 && r.t_fail > first - 0.2, "{r:?}, first contact at {first}");
+}
+
+#[test]
+fn a_clear_check_is_clear_at_every_millisecond() {
+    // Random tumbling, turning, growing tracks; the arm at rest or moving within its speed
+    // limits. Whenever the checker says clear, the clearance every millisecond is ≥ 0 (the
+    // samples' δ/2 covers everything between them).
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(31);
+    let lim = limits();
+    let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    let mut dense = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    dense.cap = 10.0;
+    let (mut clear, mut close) = (0, 0);
+    for _ in 0..40 {
+        let w = random_world(&mut rng, 8);
+        let q0: [f64; NJ] = std::array::from_fn(|j| START[j] + rng.random_range(-0.5..0.5));
+        let moving = rng.random_bool(0.5);
+        let dq: [f64; NJ] =
+            std::array::from_fn(|j| if moving { lim.v_max[j] * rng.random_range(-1.0..1.0) } else { 0.0 });
+        let at = |t: f64| -> [f64; NJ] { std::array::from_fn(|j| q0[j] + dq[j] * t) };
+        let (t0, t1) = (rng.random_range(0.0..2.0), rng.random_range(2.0..4.5));
+        let r = ch.check(&w, t0, t1, t1, moving, at);
+        if !r.ok {
+            continue;
+        }
+        clear += 1;
+        let n = ((t1 - t0) / 1e-3) as usize;
+        let m = (0..=n)
+            .map(|i| {
+                let t = t0 + (t1 - t0) * i as f64 / n as f64;
+                dense.clearance_at(&w, &at(t), t, 0.0, f64::NEG_INFINITY)
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(m >= -1e-9, "clear by the checker, but {m} at some millisecond");
+        close += (m < 0.2) as usize;
+    }
+    assert!(clear >= 5 && close >= 2, "cases exercised: {clear} clear, {close} of them close");
+}
+
+#[test]
+fn a_fast_spinning_object_crossing_the_arm_is_never_missed() {
+    // Small rods and spheres at 3–10 m/s, spinning, each aimed at a random point of a random
+    // link of the arm (at rest or moving within its limits) at a random time, passing within
+    // -0.1..0.3 m of it. Whenever a check every half millisecond finds a contact, the checker
+    // reports one (its samples, spaced by the shape's and the ball's gaps, skip none); when it
+    // finds none, neither does the checker by more than its δ/2.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(41);
+    let lim = limits();
+    let poser = dkrrt_collision::ArmPoser::new(ArmModel::default_arm());
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    let mut dense = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    dense.cap = 10.0;
+    let (mut hits, mut misses) = (0, 0);
+    for case in 0..60 {
+        let q0: [f64; NJ] = std::array::from_fn(|j| START[j] + rng.random_range(-0.3..0.3));
+        let moving = case % 2 == 1;
+        let dq: [f64; NJ] =
+            std::array::from_fn(|j| if moving { lim.v_max[j] * rng.random_range(-1.0..1.0) } else { 0.0 });
+        let at = |t: f64| -> [f64; NJ] { std::array::from_fn(|j| q0[j] + dq[j] * t) };
+        let t_c = rng.random_range(0.3..3.7);
+        poser.pose(&at(t_c), &mut caps);
+        let c = caps[rng.random_range(1..NJ)];
+        let f = rng.random_range(0.0..1.0);
+        let aim: [f64; 3] = std::array::from_fn(|k| c.a[k] + f * (c.b[k] - c.a[k]));
+        let dir: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        let speed = rng.random_range(3.0..10.0);
+        let v: [f64; 3] = std::array::from_fn(|k| speed * dir[k] / n);
+        // Off the line by a random miss, square to the flight.
+        let side = [dir[1], -dir[0], 0.0];
+        let sn = (side[0] * side[0] + side[1] * side[1]).sqrt().max(1e-9);
+        let (shape, size) = if case % 3 == 0 {
+            (DebrisShape::sphere(0.05), 0.05)
+        } else {
+            (DebrisShape::capsule(0.15, 0.02), 0.17)
+        };
+        let miss = c.r + size + rng.random_range(-0.1..0.3);
+        let p_c: [f64; 3] = std::array::from_fn(|k| aim[k] + miss * side[k] / sn);
+        let w_spin = rng.random_range(-8.0..8.0);
+        let poses: Vec<TimedPose> = (0..=45)
+            .map(|i| {
+                let t = 0.1 * i as f64;
+                let h = 0.5 * w_spin * t;
+                TimedPose {
+                    t,
+                    p: std::array::from_fn(|k| p_c[k] + v[k] * (t - t_c)),
+                    q: [h.cos(), h.sin() * 0.6, 0.0, h.sin() * 0.8],
+                    sigma: 0.0,
+                    sigma_pos: 0.0,
+                }
+            })
+            .collect();
+        let mut w = WorldInTime::new(0.0);
+        w.push_track(1, shape, &poses, After::Hold).unwrap();
+        let r = ch.check(&w, 0.0, 4.0, 4.0, moving, at);
+        let steps = 8000;
+        let truth = (0..=steps)
+            .map(|i| {
+                let t = 4.0 * i as f64 / steps as f64;
+                dense.clearance_at(&w, &at(t), t, 0.0, f64::NEG_INFINITY)
+            })
+            .fold(f64::INFINITY, f64::min);
+        if truth < 0.0 {
+            hits += 1;
+            assert!(!r.ok, "case {case}: a contact ({truth:.3} m) the checker missed: {r:?}");
+        } else {
+            misses += 1;
+            assert!(r.ok || truth < ch.delta(), "case {case}: clear by {truth:.3} m, yet {r:?}");
+        }
+    }
+    assert!(hits >= 10 && misses >= 10, "cases exercised: {hits} contacts, {misses} clear");
 }
