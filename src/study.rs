@@ -65,6 +65,8 @@ pub struct Row {
     /// Planner cycles that read an older forecast than the process set would have (the
     /// lockstep builds only the forecasts the planner reads: `PredictorFigures::stale_reads`).
     pub stale_forecast_reads: u64,
+    /// Configurations the planner checked (its work, the same on any machine).
+    pub planner_configs: u64,
     pub error: Option<String>,
 }
 
@@ -100,6 +102,7 @@ impl Row {
             wall_s: 0.0,
             episode_gen_s: 0.0,
             stale_forecast_reads: 0,
+            planner_configs: 0,
             error: None,
         }
     }
@@ -223,6 +226,7 @@ pub fn run_episode(
             row.fallbacks_dodge = p.fallbacks.dodge;
             row.deadline_misses = p.deadline_misses;
             row.min_predicted_clearance_m = p.min_predicted_clearance_m;
+            row.planner_configs = p.configs_checked;
         }
         Ok(())
     })();

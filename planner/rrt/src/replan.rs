@@ -173,6 +173,9 @@ pub struct Summary {
     /// Cycles that did not plan because no forecast had come yet.
     pub cycles_waiting_for_forecast: u64,
     pub iterations: u64,
+    /// Configurations the planner checked over the run (searches, plan checks, dodges): its
+    /// work, whatever the machine's speed.
+    pub configs_checked: u64,
 }
 
 /// What one cycle decided.
@@ -301,6 +304,7 @@ impl Replanner {
             goal_reached_s: s.goal_reached_s,
             cycles_waiting_for_forecast: s.cycles_waiting_for_forecast,
             iterations: s.planner_iterations,
+            configs_checked: self.planner.checker.configs_checked,
         }
     }
 
