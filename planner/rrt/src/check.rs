@@ -41,7 +41,7 @@
 //! `≥ c₀ − deeper_m` only (it may not go much deeper than where it starts), after that `≥ 0`
 //! as always. Such a motion leaves the inflation within `within_s`; a rest inside it fails.
 
-use dkrrt_collision::{clearance, ArmPoser, Obstacle, PosedCapsule};
+use dkrrt_collision::{clearance, clearance_pairs, ArmPoser, Obstacle, PosedCapsule};
 use dkrrt_model::{ArmModel, NJ};
 
 use crate::world::{Gaps, Near, WorldInTime, MAX_TRACKS};
@@ -95,6 +95,11 @@ pub struct Checker {
     pub deadline: Option<std::time::Instant>,
     /// The last sample's gap per track ([`WorldInTime::obstacles_gapped`]).
     gaps: Gaps,
+    /// The last sample's gap per track and capsule to its inflated shape (a lower bound; at
+    /// least the ball's, [`Gaps::ball`]).
+    pairs: [[f64; NJ]; MAX_TRACKS],
+    /// The joint speed limits the checked motions respect (`check` of a moving arm), rad/s.
+    v_max: [f64; NJ],
 }
 
 impl Checker {
@@ -122,6 +127,8 @@ impl Checker {
             capped: 0,
             deadline: None,
             gaps: Gaps::default(),
+            pairs: [[f64::INFINITY; NJ]; MAX_TRACKS],
+            v_max: *v_max,
         }
     }
 
@@ -230,8 +237,8 @@ impl Checker {
         moving: bool,
         at: impl FnMut(f64) -> [f64; NJ],
     ) -> Check {
-        let v_arm = if moving { Some(self.arm_speed) } else { None };
-        self.check_motion(world, t0, t1, t_end, v_arm, at)
+        let v_max = self.v_max;
+        self.check_joint_motion(world, t0, t1, t_end, moving.then_some(&v_max), at)
     }
 
     /// The speed bound of a motion whose joints move at most at `speed[j]` (rad/s): `Σ_j
@@ -262,6 +269,41 @@ impl Checker {
         t1: f64,
         t_end: f64,
         v_arm: Option<f64>,
+        at: impl FnMut(f64) -> [f64; NJ],
+    ) -> Check {
+        let v = v_arm.map(|v| v.clamp(0.0, self.arm_speed));
+        self.check_inner(world, t0, t1, t_end, v.map(|v| (v, [v; NJ])), at)
+    }
+
+    /// [`Checker::check_motion`] of a motion whose joints move at most at `speed[j]` rad/s
+    /// (`None`: a rest): each capsule's points at most at their own bound
+    /// ([`ArmPoser::capsule_speeds`]), the whole arm at [`Checker::motion_speed`]. A capsule
+    /// near the base moves slower than the hand: the samples near it are spaced by its speed.
+    pub fn check_joint_motion(
+        &mut self,
+        world: &WorldInTime,
+        t0: f64,
+        t1: f64,
+        t_end: f64,
+        speed: Option<&[f64; NJ]>,
+        at: impl FnMut(f64) -> [f64; NJ],
+    ) -> Check {
+        let arm = speed.map(|sp| {
+            let v = self.motion_speed(sp);
+            (v, self.poser.capsule_speeds(sp).map(|c| c.min(v)))
+        });
+        self.check_inner(world, t0, t1, t_end, arm, at)
+    }
+
+    /// The check, the arm moving at most at `arm.0` m/s and capsule `k` at `arm.1[k]`
+    /// (`None`: at rest).
+    fn check_inner(
+        &mut self,
+        world: &WorldInTime,
+        t0: f64,
+        t1: f64,
+        t_end: f64,
+        arm: Option<(f64, [f64; NJ])>,
         mut at: impl FnMut(f64) -> [f64; NJ],
     ) -> Check {
         let mut out = Check::pass(self.cap);
@@ -269,8 +311,8 @@ impl Checker {
         if t1c < t0 {
             return out;
         }
-        let moving = v_arm.is_some();
-        let v_arm = v_arm.map_or(0.0, |v| v.clamp(0.0, self.arm_speed));
+        let moving = arm.is_some();
+        let (v_arm, v_caps) = arm.unwrap_or((0.0, [0.0; NJ]));
         let half = 0.5 * self.delta;
         // Broad phase: the tracks that can come within the cap of the arm in [t0, t1c].
         self.poser.pose(&at(t0), &mut self.caps);
@@ -281,17 +323,17 @@ impl Checker {
                 (centre, radius) = self.reach;
             }
         }
-        // Per track kept: how fast its gap to the arm can close over the stretch.
+        // Per track kept: how fast its surface moves over the stretch, and its bounding
+        // ball's (no rotation: slower for a tumbling shape). A gap to capsule `k` closes at
+        // most at that plus the capsule's speed.
         let mut closing = [0.0f64; MAX_TRACKS];
         let mask = world.near_speeds(t0, t1c, &centre, radius + self.cap, half, &mut closing);
-        closing.iter_mut().for_each(|v| *v += v_arm);
-        // And its bounding ball's gap (no rotation: slower for a tumbling shape).
         let mut closing_ball = [0.0f64; MAX_TRACKS];
         let mut m = mask;
         while m != 0 {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            closing_ball[i] = world.ball_speed_within(i, t0, t1c) + v_arm;
+            closing_ball[i] = world.ball_speed_within(i, t0, t1c);
         }
         let mut t = t0;
         loop {
@@ -316,7 +358,7 @@ impl Checker {
             // samples may skip to its end (or as far as c allows past it). The nearest track
             // in time sets the step; a track far away no longer does, however fast.
             let until = self.relief.map_or(t, |r| r.1) - t;
-            let mut step = self.next_step(mask, &closing, &closing_ball, floor, until);
+            let mut step = self.next_step(mask, &closing, &closing_ball, &v_caps, floor, until);
             if step < REFRESH_STEP_S {
                 // The stretch's speeds bound every track over all of it; one fast only
                 // somewhere (a problem obstacle's fast leg) would space every sample that
@@ -326,10 +368,10 @@ impl Checker {
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    closing[i] = world.speed_within(i, t, t1c) + v_arm;
-                    closing_ball[i] = world.ball_speed_within(i, t, t1c) + v_arm;
+                    closing[i] = world.speed_within(i, t, t1c);
+                    closing_ball[i] = world.ball_speed_within(i, t, t1c);
                 }
-                step = self.next_step(mask, &closing, &closing_ball, floor, until);
+                step = self.next_step(mask, &closing, &closing_ball, &v_caps, floor, until);
             }
             if out.samples >= self.max_samples {
                 // Not verified within the samples a check may take: not clear.
@@ -351,13 +393,15 @@ impl Checker {
     }
 
     /// The step to the next sample of [`Checker::check_motion`] (its conservative advancement)
-    /// from each track's gaps at the last sample (to its inflated shape, and to its bounding
-    /// ball) and their closing speeds.
+    /// from each track's gaps to each capsule at the last sample (to its inflated shape, and
+    /// to its bounding ball) and their closing speeds: the track's surface's (`closing`) or
+    /// ball's (`closing_ball`) plus the capsule's (`v_caps`).
     fn next_step(
         &self,
         mask: u64,
         closing: &[f64; MAX_TRACKS],
         closing_ball: &[f64; MAX_TRACKS],
+        v_caps: &[f64; NJ],
         floor: f64,
         until: f64,
     ) -> f64 {
@@ -384,13 +428,16 @@ impl Checker {
         while m != 0 {
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
-            let v = closing[i];
-            if v <= 1e-9 {
-                continue;
+            for (k, vk) in v_caps.iter().enumerate() {
+                let v = closing[i] + vk;
+                if v <= 1e-9 {
+                    continue;
+                }
+                // The separation stays above either gap's bound, whichever lasts longer.
+                let vb = closing_ball[i] + vk;
+                let f = free(self.pairs[i][k], v).max(free(self.gaps.ball[i][k], vb));
+                step = step.min(f.max(0.0) + self.delta / v);
             }
-            // The separation stays above either gap's bound, whichever lasts longer.
-            let f = free(self.gaps.gap[i], v).max(free(self.gaps.ball[i], closing_ball[i].min(v)));
-            step = step.min(f.max(0.0) + self.delta / v);
         }
         step
     }
@@ -417,11 +464,21 @@ impl Checker {
         let (centre, radius) = bounding_sphere(&self.caps);
         let near = Near { arm: &self.caps, centre: &centre, radius, cap: self.cap };
         world.obstacles_gapped(t, extra, mask, Some(near), &mut self.obs, Some(&mut self.gaps));
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            self.pairs[i] = self.gaps.ball[i];
+        }
         let mut c = self.cap;
+        let mut per = [0.0; NJ];
         for (k, o) in self.obs.iter().enumerate() {
-            let ck = clearance(&self.caps, std::slice::from_ref(o), floor, self.cap);
+            let ck = clearance_pairs(&self.caps, o, floor, self.cap, &mut per);
             let i = self.gaps.track[k] as usize;
             self.gaps.gap[i] = self.gaps.gap[i].max(ck);
+            for (p, d) in self.pairs[i].iter_mut().zip(per) {
+                *p = p.max(d);
+            }
             c = c.min(ck);
             if ck < floor {
                 break;

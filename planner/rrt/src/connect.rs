@@ -94,8 +94,7 @@ impl Connect {
             return false;
         }
         let speed: [f64; NJ] = std::array::from_fn(|j| (b[j] - a[j]).abs() / d);
-        let v = checker.motion_speed(&speed);
-        let c = checker.check_motion(world, 0.0, d, d, Some(v), |t| {
+        let c = checker.check_joint_motion(world, 0.0, d, d, Some(&speed), |t| {
             let s = (t / d).clamp(0.0, 1.0);
             std::array::from_fn(|j| a[j] + s * (b[j] - a[j]))
         });

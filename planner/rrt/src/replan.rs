@@ -844,8 +844,11 @@ pub fn check_message_at(
     let mut a = t0;
     while c.ok && a < t1.min(end) {
         let b = (a + MESSAGE_PIECE_S).min(t1.min(end));
-        let v = planner.checker.motion_speed(&message_speed_peaks(tr, a - start, b - start));
-        c = merge(c, planner.checker.check_motion(world, a, b, t1, Some(v), |t| tr.sample(t - start).p));
+        let peaks = message_speed_peaks(tr, a - start, b - start);
+        c = merge(
+            c,
+            planner.checker.check_joint_motion(world, a, b, t1, Some(&peaks), |t| tr.sample(t - start).p),
+        );
         a = b;
     }
     if c.ok && t1 >= a {

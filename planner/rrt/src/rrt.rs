@@ -307,9 +307,9 @@ impl Planner {
         }
         let ts = n.t + w;
         let d = tr.duration();
-        let v_arm = self.checker.motion_speed(&tr.speed_peaks());
+        let peaks = tr.speed_peaks();
         let t_end = if self.cfg.check_whole_motions { t_end.max(ts + d) } else { t_end };
-        let c = self.checker.check_motion(world, ts, ts + d, t_end, Some(v_arm), |t| tr.at(t - ts).p);
+        let c = self.checker.check_joint_motion(world, ts, ts + d, t_end, Some(&peaks), |t| tr.at(t - ts).p);
         if !c.ok {
             if self.debug && from == ROOT {
                 eprintln!(

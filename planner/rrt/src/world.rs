@@ -19,9 +19,10 @@
 //! (|v| + ω·R + dσ/dt over its intervals, and over the extrapolation), used by the checker to
 //! space its samples. Loading a forecast allocates nothing (fixed capacity).
 
-use dkrrt_collision::pose::{slerp_on, SlerpArc};
+use dkrrt_collision::pose::{quat_mul, slerp_on, SlerpArc};
 use dkrrt_collision::{quat_angle, Obstacle, PosedCapsule};
-use dkrrt_msg::{DebrisForecast, DebrisShape, FORECAST_STEPS, MAX_DEBRIS};
+use dkrrt_model::NJ;
+use dkrrt_msg::{DebrisForecast, DebrisShape, ShapeKind, FORECAST_STEPS, MAX_DEBRIS};
 
 /// One timed pose of a track.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -51,9 +52,6 @@ struct Track {
     id: u32,
     shape: DebrisShape,
     radius: f64,
-    /// `radius` + the shape's offset: every point of the obstacle built at a pose lies within
-    /// this of the pose's position, whichever form it takes.
-    reach: f64,
     lever: f64,
     after: After,
     poses: Vec<TimedPose>,
@@ -64,8 +62,8 @@ struct Track {
     /// The same per interval between consecutive poses (`speeds[k]`: poses `k`, `k + 1`), m/s.
     speeds: Vec<f64>,
     /// Per interval, the largest speed of the surface of the track's bounding ball (centre
-    /// `p`, radius `reach + max(σ, σ_pos)` + inflation): `|Δp| + max(|Δσ|, |Δσ_pos|)` over
-    /// the interval's length. No rotation term: a ball about the centre turns into itself.
+    /// `p`, radius `radius + σ_pos` + inflation): `|Δp| + |Δσ_pos|` over the interval's
+    /// length. No rotation, no attitude bound: a ball about the centre turns into itself.
     ball_speeds: Vec<f64>,
     /// Growth rate of the position bound (and of σ) after the last pose, m/s.
     sigma_rate: f64,
@@ -107,7 +105,6 @@ impl WorldInTime {
                 id: 0,
                 shape: DebrisShape::default(),
                 radius: 0.0,
-                reach: 0.0,
                 lever: 0.0,
                 after: After::Hold,
                 poses: Vec::with_capacity(FORECAST_STEPS + 1),
@@ -221,11 +218,12 @@ impl WorldInTime {
     /// The tracks whose inflated shape (inflated by `extra` more) can come within `reach` of
     /// the sphere (`centre`, `radius`) at some time in `[t0, t1]`, as a bit mask (bit `i`:
     /// track `i`), and the largest speed among them over `[t0, t1]`
-    /// ([`WorldInTime::speed_within`]). Conservative: at the window's middle a track's
-    /// inflated shape lies within its bounding radius + σ + margin + extra of its centre, and
-    /// centre and σ together move at most at its ball's speed over the window
-    /// ([`WorldInTime::ball_speed_within`]: no rotation), so over the half window it stays
-    /// inside that sphere grown by that speed × half window.
+    /// ([`WorldInTime::speed_within`]). Conservative: at the window's middle every obstacle
+    /// built for a track lies within its bounding radius + σ_pos + margin + extra of its
+    /// centre (the object lies in its bounding sphere inflated by the position bound, and its
+    /// distance is never below that ball's), and centre and σ_pos together move at most at the
+    /// ball's speed over the window ([`WorldInTime::ball_speed_within`]), so over the half
+    /// window it stays inside that sphere grown by that speed × half window.
     pub fn near(&self, t0: f64, t1: f64, centre: &[f64; 3], radius: f64, extra: f64) -> (u64, f64) {
         let mut speeds = [0.0; MAX_TRACKS];
         let mask = self.near_speeds(t0, t1, centre, radius, extra, &mut speeds);
@@ -248,11 +246,8 @@ impl WorldInTime {
         speeds.fill(0.0);
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             let s = state_at(tr, tm);
-            let r = tr.radius
-                + s.sigma.max(s.sigma_pos)
-                + self.margin
-                + extra
-                + within(tr, &tr.ball_speeds, t0, t1) * half;
+            let r =
+                tr.radius + s.sigma_pos + self.margin + extra + within(tr, &tr.ball_speeds, t0, t1) * half;
             if !(dist3(&s.p, centre) - r - radius > 0.0) {
                 mask |= 1 << i;
                 speeds[i] = speed_within(tr, t0, t1);
@@ -271,9 +266,10 @@ impl WorldInTime {
     }
 
     /// The largest speed of any point of the surface of track `i`'s bounding ball over
-    /// `[t0, t1]`, m/s: the ball about its centre of radius `reach + max(σ, σ_pos)` plus the
-    /// inflation, which holds the inflated shape at any attitude (the gaps of
-    /// [`Gaps::ball`]). As [`WorldInTime::speed_within`] without the rotation: at most it.
+    /// `[t0, t1]`, m/s: the ball about its centre of radius `radius + σ_pos` plus the
+    /// inflation, which holds every obstacle built for it at any attitude (the gaps of
+    /// [`Gaps::ball`]). As [`WorldInTime::speed_within`] without the rotation and the
+    /// attitude bound's growth: at most it.
     pub fn ball_speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
         let tr = &self.tracks[i];
         within(tr, &tr.ball_speeds, t0, t1)
@@ -321,13 +317,15 @@ impl WorldInTime {
             let s = state_at(tr, t);
             let base = self.margin + extra;
             if let Some(nr) = &near {
-                // The shape (or the bounding sphere), inflated, lies within `r` of `s.p`.
-                let r = tr.reach + s.sigma.max(s.sigma_pos) + base;
+                // Every obstacle built below lies in the ball about `s.p` of radius `r`: its
+                // bounding sphere inflated by the position bound (a shape's distance is the
+                // larger of its own and that ball's).
+                let r = tr.radius + s.sigma_pos + base;
                 let g_arm = dist3(&s.p, nr.centre) - r - nr.radius;
                 if g_arm >= nr.cap {
                     if let Some(g) = gaps.as_deref_mut() {
                         g.gap[i] = g_arm;
-                        g.ball[i] = g_arm;
+                        g.ball[i] = [g_arm; NJ];
                     }
                     continue;
                 }
@@ -336,11 +334,15 @@ impl WorldInTime {
                 // (before its attitude is interpolated). `r` bounds the obstacle's own bounding
                 // sphere and inflation from `s.p`; the slack covers rounding, so what is left
                 // out is exactly what `clearance` would have skipped.
-                let g_caps =
-                    nr.arm.iter().map(|c| dist3(&s.p, &c.centre) - c.bound - r).fold(f64::INFINITY, f64::min);
+                let mut per = [f64::INFINITY; NJ];
+                for (d, c) in per.iter_mut().zip(nr.arm) {
+                    *d = dist3(&s.p, &c.centre) - c.bound - r;
+                }
+                let g_caps = per.iter().fold(f64::INFINITY, |a, &b| a.min(b));
                 if let Some(g) = gaps.as_deref_mut() {
                     g.gap[i] = g_arm.max(g_caps);
-                    g.ball[i] = g.gap[i];
+                    // Each capsule lies in the arm's sphere too.
+                    g.ball[i] = per.map(|d| d.max(g_arm));
                     g.track[out.len().min(MAX_TRACKS - 1)] = i as u8;
                 }
                 if !(g_caps < nr.cap + 1e-9) {
@@ -390,8 +392,6 @@ fn finish(t: &mut Track) {
         t.arcs.push(SlerpArc::between(&w[0].q, &w[1].q));
     }
     let r = t.radius;
-    let o = &t.shape.offset;
-    t.reach = r + (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
     t.grid_dt = 0.0;
     if n >= 2 {
         let dt = t.poses[1].t - t.poses[0].t;
@@ -409,10 +409,11 @@ fn finish(t: &mut Track) {
             + (w[1].p[2] - w[0].p[2]).powi(2))
         .sqrt();
         let da = quat_angle(&w[0].q, &w[1].q);
+        let lever = turn_lever(&t.shape, r, &w[0].q, &w[1].q);
         let ds = (w[1].sigma - w[0].sigma).abs();
-        t.speeds.push((dp + da * r + ds) / dt);
-        t.ball_speeds.push((dp + ds.max((w[1].sigma_pos - w[0].sigma_pos).abs())) / dt);
-        speed = speed.max((dp + da * r + ds) / dt);
+        t.speeds.push((dp + da * lever + ds) / dt);
+        t.ball_speeds.push((dp + (w[1].sigma_pos - w[0].sigma_pos).abs()) / dt);
+        speed = speed.max((dp + da * lever + ds) / dt);
     }
     t.sigma_rate = 0.0;
     if t.after == After::Extrapolate && n >= 1 {
@@ -433,6 +434,27 @@ fn finish(t: &mut Track) {
     t.speed = speed;
 }
 
+/// How far from the turn's axis a point of `shape` (bounding radius `r`) can lie when its
+/// attitude slerps from `qa` to `qb` (a turn about one body axis `n`): a point moves at most the
+/// turn's rate times this. A capsule (along body z, half length `h`, radius `ρ`) is within
+/// `|offset| + h·|n × z| + ρ` of the axis: spinning about its own axis moves its surface by
+/// `ρ` only. A sphere turns into itself (its offset only). Other shapes: `r`.
+fn turn_lever(shape: &DebrisShape, r: f64, qa: &[f64; 4], qb: &[f64; 4]) -> f64 {
+    let o = &shape.offset;
+    let off = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
+    let d = &shape.dims;
+    match ShapeKind::from_u32(shape.kind) {
+        Some(ShapeKind::Sphere) => off.min(r),
+        Some(ShapeKind::Capsule) => {
+            let rel = quat_mul(&[qa[0], -qa[1], -qa[2], -qa[3]], qb);
+            let n = (rel[1] * rel[1] + rel[2] * rel[2] + rel[3] * rel[3]).sqrt();
+            let across = if n > 1e-12 { (rel[1] * rel[1] + rel[2] * rel[2]).sqrt() / n } else { 1.0 };
+            (off + d[0] * across + d[1]).min(r)
+        }
+        _ => r,
+    }
+}
+
 const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
 
 fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -445,17 +467,22 @@ fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 pub struct Gaps {
     /// `gap[i]`: every point of track `i`'s inflated shape is at least this far from the arm, m.
     pub gap: [f64; MAX_TRACKS],
-    /// `ball[i]`: the same for the ball about track `i`'s centre of radius `reach +
-    /// max(σ, σ_pos)` + the inflation, which holds its inflated shape at every attitude (at
-    /// most `gap[i]`; its surface moves at [`WorldInTime::ball_speed_within`]), m.
-    pub ball: [f64; MAX_TRACKS],
+    /// `ball[i][k]`: every point of the ball about track `i`'s centre of radius `radius +
+    /// σ_pos` + the inflation, which holds every obstacle built for it, is at
+    /// least this far from the arm's capsule `k` (from the bounding spheres; its surface moves
+    /// at [`WorldInTime::ball_speed_within`]), m.
+    pub ball: [[f64; NJ]; MAX_TRACKS],
     /// `track[k]`: the track of the `k`-th obstacle written.
     pub track: [u8; MAX_TRACKS],
 }
 
 impl Default for Gaps {
     fn default() -> Self {
-        Gaps { gap: [f64::INFINITY; MAX_TRACKS], ball: [f64::INFINITY; MAX_TRACKS], track: [0; MAX_TRACKS] }
+        Gaps {
+            gap: [f64::INFINITY; MAX_TRACKS],
+            ball: [[f64::INFINITY; NJ]; MAX_TRACKS],
+            track: [0; MAX_TRACKS],
+        }
     }
 }
 

@@ -53,6 +53,9 @@ pub struct ArmPoser {
     /// Base-frame offset added to every posed point (e.g. the base's position in LVLH).
     offset: [f64; 3],
     lever: [f64; NJ],
+    /// `capsule_lever[k][i]`: the same bound for the points of capsule `k` only (0 for a joint
+    /// that does not move it).
+    capsule_lever: [[f64; NJ]; NJ],
 }
 
 impl ArmPoser {
@@ -63,8 +66,8 @@ impl ArmPoser {
     /// Capsules are reported in a frame whose origin is `-offset` in the base frame (a point
     /// `x` of the base frame is reported as `x + offset`).
     pub fn with_offset(model: ArmModel, offset: [f64; 3]) -> Self {
-        let lever = lever_arms(&model);
-        ArmPoser { model, offset, lever }
+        let (lever, capsule_lever) = lever_arms(&model);
+        ArmPoser { model, offset, lever, capsule_lever }
     }
 
     pub fn model(&self) -> &ArmModel {
@@ -80,6 +83,13 @@ impl ArmPoser {
     /// Upper bound on the speed of any arm point when every joint moves at most at `v_max`, m/s.
     pub fn max_point_speed(&self, v_max: &[f64; NJ]) -> f64 {
         (0..NJ).map(|i| v_max[i].abs() * self.lever[i]).sum()
+    }
+
+    /// Per capsule of [`ArmPoser::pose`]: an upper bound on the speed of its points when every
+    /// joint moves at most at `v_max`, m/s (only the joints before it move it, with their
+    /// lever arms to it alone). At most [`ArmPoser::max_point_speed`].
+    pub fn capsule_speeds(&self, v_max: &[f64; NJ]) -> [f64; NJ] {
+        std::array::from_fn(|k| (0..NJ).map(|i| v_max[i].abs() * self.capsule_lever[k][i]).sum())
     }
 
     /// The capsules at joint positions `q`.
@@ -108,8 +118,10 @@ impl ArmPoser {
 }
 
 /// Lever arm bound per joint: the chain of rigid offsets from joint `i`'s origin to the farthest
-/// capsule point of every link after it (triangle inequality, so it holds at every `q`).
-fn lever_arms(model: &ArmModel) -> [f64; NJ] {
+/// capsule point of every link after it (triangle inequality, so it holds at every `q`); and the
+/// same per collision capsule (capsule `k`, joint `i`: 0 when joint `i` comes after its link).
+/// Capsules beyond the model's (none, for a model with one per link) get the whole arm's.
+fn lever_arms(model: &ArmModel) -> ([f64; NJ], [[f64; NJ]; NJ]) {
     let poses = model.link_poses(&JVec::zeros());
     // Distance between consecutive joint origins (link frame origins): constant in q.
     let mut hop = [0.0; NJ];
@@ -117,6 +129,8 @@ fn lever_arms(model: &ArmModel) -> [f64; NJ] {
         let d = poses[k].translation.vector - poses[k - 1].translation.vector;
         hop[k] = d.norm();
     }
+    // From joint `i`'s origin to link `k`'s, along the chain.
+    let chain = |i: usize, k: usize| -> f64 { (i + 1..=k).map(|m| hop[m]).sum() };
     let mut reach = [0.0f64; NJ]; // farthest capsule point from link k's origin
     for lc in model.collision_capsules() {
         let r = lc.a.coords.norm().max(lc.b.coords.norm()) + lc.radius;
@@ -124,17 +138,20 @@ fn lever_arms(model: &ArmModel) -> [f64; NJ] {
     }
     let mut lever = [0.0; NJ];
     for (i, l) in lever.iter_mut().enumerate() {
-        let mut chain = 0.0;
         let mut best: f64 = 0.0;
-        for k in i..NJ {
-            if k > i {
-                chain += hop[k];
-            }
-            best = best.max(chain + reach[k]);
+        for (k, r) in reach.iter().enumerate().skip(i) {
+            best = best.max(chain(i, k) + r);
         }
         *l = best;
     }
-    lever
+    let mut capsule_lever = [lever; NJ];
+    for (cl, lc) in capsule_lever.iter_mut().zip(model.collision_capsules()) {
+        let r = lc.a.coords.norm().max(lc.b.coords.norm()) + lc.radius;
+        for (i, l) in cl.iter_mut().enumerate() {
+            *l = if i <= lc.link { chain(i, lc.link) + r } else { 0.0 };
+        }
+    }
+    (lever, capsule_lever)
 }
 
 /// An obstacle's geometry.
@@ -448,6 +465,37 @@ pub fn clearance(arm: &[PosedCapsule], obstacles: &[Obstacle], stop_below: f64, 
                 if best < stop_below {
                     return best;
                 }
+            }
+        }
+    }
+    best
+}
+
+/// [`clearance`] against one obstacle (the same result, the same early return), and in
+/// `pairs[k]` a lower bound on the obstacle's distance from capsule `arm[k]`: exact where the
+/// pair was measured, its bounding spheres' where it was not. After an early return (a result
+/// below `stop_below`) the entries not reached are `-∞`.
+pub fn clearance_pairs(
+    arm: &[PosedCapsule],
+    o: &Obstacle,
+    stop_below: f64,
+    cap: f64,
+    pairs: &mut [f64],
+) -> f64 {
+    let mut best = cap;
+    for (k, c) in arm.iter().enumerate() {
+        let lower = o.lower_bound(c);
+        if lower >= best {
+            pairs[k] = lower;
+            continue;
+        }
+        let d = o.distance(c);
+        pairs[k] = d;
+        if d < best {
+            best = d;
+            if best < stop_below {
+                pairs[k + 1..arm.len()].fill(f64::NEG_INFINITY);
+                return best;
             }
         }
     }
