@@ -610,10 +610,11 @@ fn random_world(rng: &mut rand::rngs::SmallRng, n: u32) -> WorldInTime {
 #[test]
 fn a_tracks_speed_over_a_window_bounds_its_motion_there() {
     // Centre and σ together move no faster than `speed_within` over any window, which is never
-    // above the track's speed over its whole forecast (and is much below it in most windows).
+    // above the track's speed over its whole forecast (and is much below it in most windows);
+    // centre and σ_pos no faster than `ball_speed_within`.
     use rand::{Rng, SeedableRng};
     let mut rng = rand::rngs::SmallRng::seed_from_u64(7);
-    let mut lower = 0;
+    let (mut lower, mut slower) = (0, 0);
     let mut windows = 0;
     for _ in 0..30 {
         let w = random_world(&mut rng, 6);
@@ -625,20 +626,39 @@ fn a_tracks_speed_over_a_window_bounds_its_motion_there() {
                 assert!(v <= w.max_speed() + 1e-12);
                 windows += 1;
                 lower += (v < 0.8 * w.max_speed()) as usize;
-                let (mut pp, _, mut sp, _, _) = w.pose_at(i, a);
-                for k in 1..=50 {
-                    let t = a + (b - a) * k as f64 / 50.0;
-                    let (p, _, s, _, _) = w.pose_at(i, t);
-                    let moved = ((p[0] - pp[0]).powi(2) + (p[1] - pp[1]).powi(2) + (p[2] - pp[2]).powi(2))
-                        .sqrt()
-                        + (s - sp).abs();
-                    assert!(moved <= v * (b - a) / 50.0 + 1e-9, "track {i} in [{a}, {b}]: {moved} > {v}");
-                    (pp, sp) = (p, s);
-                }
+                // The centre and σ.
+                assert_moves_within(&w, i, a, b, v, |(p, _, s, _, _)| (p, s));
+                // The bounding ball (centre, radius + σ_pos), at `ball_speed_within`: below
+                // `speed_within` for a turning shape.
+                let vb = w.ball_speed_within(i, a, b);
+                assert_moves_within(&w, i, a, b, vb, |(p, _, _, sp, _)| (p, sp));
+                slower += (vb < 0.9 * v) as usize;
             }
         }
     }
     assert!(lower * 2 > windows, "a window's speed is rarely below the whole forecast's: {lower}/{windows}");
+    assert!(slower * 3 > windows, "the ball is rarely slower than the shape: {slower}/{windows}");
+}
+
+/// Over `[a, b]` in 50 steps, a centre and a radius read from track `i`'s pose (`of`) move
+/// together no faster than `v`.
+fn assert_moves_within(
+    w: &WorldInTime,
+    i: usize,
+    a: f64,
+    b: f64,
+    v: f64,
+    of: impl Fn(([f64; 3], [f64; 4], f64, f64, bool)) -> ([f64; 3], f64),
+) {
+    let (mut pp, mut rp) = of(w.pose_at(i, a));
+    for k in 1..=50 {
+        let t = a + (b - a) * k as f64 / 50.0;
+        let (p, r) = of(w.pose_at(i, t));
+        let moved = ((p[0] - pp[0]).powi(2) + (p[1] - pp[1]).powi(2) + (p[2] - pp[2]).powi(2)).sqrt()
+            + (r - rp).abs();
+        assert!(moved <= v * (b - a) / 50.0 + 1e-9, "track {i} in [{a}, {b}]: {moved} > {v}");
+        (pp, rp) = (p, r);
+    }
 }
 
 #[test]
@@ -844,43 +864,6 @@ fn a_track_is_as_far_as_the_farther_of_its_shape_and_its_sphere() {
     let c = ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY);
     let ball_gap = 1.2 - (h + r + sigma_pos + margin);
     assert!(c > 0.0 && c <= ball_gap + 1e-9, "clearance {c:.3}, the sphere's gap {ball_gap:.3}");
-}
-
-#[test]
-fn a_tracks_ball_speed_over_a_window_bounds_its_ball_there() {
-    // The bounding ball (centre, radius + σ_pos) moves no faster than `ball_speed_within`,
-    // which is below `speed_within` for a turning shape.
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand::rngs::SmallRng::seed_from_u64(23);
-    let (mut slower, mut windows) = (0, 0);
-    for _ in 0..30 {
-        let w = random_world(&mut rng, 6);
-        for i in 0..w.len() {
-            for _ in 0..20 {
-                let a = rng.random_range(-0.5..5.5);
-                let b = a + rng.random_range(0.0..1.5);
-                let vb = w.ball_speed_within(i, a, b);
-                let v = w.speed_within(i, a, b);
-                windows += 1;
-                slower += (vb < 0.9 * v) as usize;
-                let ball = |t: f64| {
-                    let (p, _, _, sp, _) = w.pose_at(i, t);
-                    (p, sp)
-                };
-                let (mut pp, mut rp) = ball(a);
-                for k in 1..=50 {
-                    let t = a + (b - a) * k as f64 / 50.0;
-                    let (p, r) = ball(t);
-                    let moved = ((p[0] - pp[0]).powi(2) + (p[1] - pp[1]).powi(2) + (p[2] - pp[2]).powi(2))
-                        .sqrt()
-                        + (r - rp).abs();
-                    assert!(moved <= vb * (b - a) / 50.0 + 1e-9, "track {i} in [{a}, {b}]: {moved} > {vb}");
-                    (pp, rp) = (p, r);
-                }
-            }
-        }
-    }
-    assert!(slower * 3 > windows, "the ball is rarely slower than the shape: {slower}/{windows}");
 }
 
 /// A rod (half length 0.6 m, radius 0.05 m, no bound) spinning at 10 rad/s about the direction
