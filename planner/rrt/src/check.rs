@@ -4,7 +4,8 @@
 //! arm moves at most `V_arm·Δt`, with `V_arm = Σ_i v_max,i · lever_i` (the joint speed limits
 //! of the motion and each joint's lever arm, [`ArmPoser::lever_arms`]), and any point of an
 //! obstacle's inflated surface moves at most `V_obs·Δt` (its forecast's largest
-//! `|v| + ω·R + dσ/dt`, [`WorldInTime::max_speed`]). The separation is 1-Lipschitz in that
+//! `|v| + ω·ℓ + dσ/dt`, ℓ the farthest its points lie from the turn's axis,
+//! [`WorldInTime::max_speed`]). The separation is 1-Lipschitz in that
 //! relative motion, so at any instant between two samples it is at least the smaller sampled
 //! separation minus `(V_arm + V_obs)·Δt / 2`. The checker picks `Δt = δ / (V_arm + V_obs)` and
 //! requires every sample to clear the obstacles inflated by `δ/2` more: nothing, however thin

@@ -16,8 +16,10 @@
 //!   the checker).
 //!
 //! Every track also carries a bound on how fast any point of its inflated surface moves
-//! (|v| + ω·R + dσ/dt over its intervals, and over the extrapolation), used by the checker to
-//! space its samples. Loading a forecast allocates nothing (fixed capacity).
+//! (|v| + ω·ℓ + dσ/dt over its intervals, ℓ the farthest a point of its shape lies from the
+//! interval's turn axis, and over the extrapolation), and one on how fast its bounding ball
+//! (radius + σ_pos) grows and moves (|v| + dσ_pos/dt), used by the checker to space its
+//! samples. Loading a forecast allocates nothing (fixed capacity).
 
 use dkrrt_collision::pose::{quat_mul, slerp_on, SlerpArc};
 use dkrrt_collision::{quat_angle, Obstacle, PosedCapsule};
