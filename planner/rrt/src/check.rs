@@ -24,15 +24,17 @@
 //! [`Checker::max_samples`] samples (200 000): one that would is not clear, so a check ends
 //! whatever the obstacles' speeds.
 //!
-//! **Conservative advancement, with two gaps per track.** Each sample gives, per track, a
-//! lower bound on the gap to its inflated shape and one on the gap to its bounding ball
-//! (about its centre, of radius its reach plus `max(σ, σ_pos)` plus the inflation: the ball
-//! holds the inflated shape at every attitude). The first closes at most at the track's
-//! surface speed, rotation included, plus the arm's; the second at `|v| + dσ/dt` plus the
-//! arm's ([`WorldInTime::ball_speed_within`]): a ball about the centre turns into itself. The
-//! separation stays above both bounds, so the next sample may wait for whichever lasts longer
-//! (then `δ / v` more, as above). A tumbling rod whose ball stays clear of the arm no longer
-//! spaces the samples by its spin.
+//! **Conservative advancement, per track and capsule, with two gaps.** Each sample gives, per
+//! track and arm capsule, a lower bound on the gap to the track's inflated shape and one on
+//! the gap to its bounding ball (about its centre, of radius its bounding radius plus `σ_pos`
+//! plus the inflation: every obstacle built for it lies in that ball). The first closes at
+//! most at the track's surface speed (its turn included) plus the capsule's speed
+//! ([`ArmPoser::capsule_speeds`]: only the joints before it move it); the second at
+//! `|v| + dσ_pos/dt` plus the capsule's ([`WorldInTime::ball_speed_within`]): a ball about the
+//! centre turns into itself. The separation stays above both bounds, so the next sample may
+//! wait for whichever lasts longer (then `δ / v` more, as above), over the pair that needs it
+//! soonest. A tumbling rod whose ball stays clear of the arm no longer spaces the samples by
+//! its spin, nor a track near the upper arm by the hand's speed.
 //!
 //! **A start inside the inflation.** The obstacles are inflated by the forecast's bound plus a
 //! margin, so a newer forecast can put the arm *inside* an inflated obstacle while the object
