@@ -170,6 +170,7 @@ impl WorldInTime {
                     sigma_pos: st.sigma_pos_m.min(st.sigma_m),
                 });
             }
+            same_turn(t);
             finish(t);
             self.n += 1;
         }
@@ -387,6 +388,30 @@ impl WorldInTime {
     }
 }
 
+/// A forecast's attitudes of a box or a capsule (no offset) taken, step by step, as the
+/// half turn about a body axis (or none) nearest to the step before: the same shape at every
+/// step (a box and a capsule are their own half turns), and the slerp between two steps no
+/// longer sweeps it end over end through half a turn it did not make (a reported flip).
+fn same_turn(t: &mut Track) {
+    let kind = ShapeKind::from_u32(t.shape.kind);
+    if !matches!(kind, Some(ShapeKind::Box | ShapeKind::Capsule)) || t.shape.offset != [0.0; 3] {
+        return;
+    }
+    for k in 1..t.poses.len() {
+        let prev = t.poses[k - 1].q;
+        let q = t.poses[k].q;
+        let dot = |a: &[f64; 4]| (a[0] * prev[0] + a[1] * prev[1] + a[2] * prev[2] + a[3] * prev[3]).abs();
+        let mut best = (dot(&q), q);
+        for h in [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]] {
+            let c = quat_mul(&q, &h);
+            if dot(&c) > best.0 + 1e-12 {
+                best = (dot(&c), c);
+            }
+        }
+        t.poses[k].q = best.1;
+    }
+}
+
 fn finish(t: &mut Track) {
     let n = t.poses.len();
     t.arcs.clear();
@@ -440,21 +465,33 @@ fn finish(t: &mut Track) {
 /// attitude slerps from `qa` to `qb` (a turn about one body axis `n`): a point moves at most the
 /// turn's rate times this. A capsule (along body z, half length `h`, radius `ρ`) is within
 /// `|offset| + h·|n × z| + ρ` of the axis: spinning about its own axis moves its surface by
-/// `ρ` only. A sphere turns into itself (its offset only). Other shapes: `r`.
+/// `ρ` only. A box is within its farthest corner's `|n × c|` (offset included: the largest
+/// over the box is at a corner). A sphere turns into itself (its offset only). Other shapes: `r`.
 fn turn_lever(shape: &DebrisShape, r: f64, qa: &[f64; 4], qb: &[f64; 4]) -> f64 {
     let o = &shape.offset;
     let off = (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt();
     let d = &shape.dims;
-    match ShapeKind::from_u32(shape.kind) {
-        Some(ShapeKind::Sphere) => off.min(r),
-        Some(ShapeKind::Capsule) => {
-            let rel = quat_mul(&[qa[0], -qa[1], -qa[2], -qa[3]], qb);
-            let n = (rel[1] * rel[1] + rel[2] * rel[2] + rel[3] * rel[3]).sqrt();
-            let across = if n > 1e-12 { (rel[1] * rel[1] + rel[2] * rel[2]).sqrt() / n } else { 1.0 };
-            (off + d[0] * across + d[1]).min(r)
-        }
-        _ => r,
+    // The turn's body axis (none: no turn, the bound is not used).
+    let rel = quat_mul(&[qa[0], -qa[1], -qa[2], -qa[3]], qb);
+    let len = (rel[1] * rel[1] + rel[2] * rel[2] + rel[3] * rel[3]).sqrt();
+    if !(len > 1e-12) {
+        return r;
     }
+    let n = [rel[1] / len, rel[2] / len, rel[3] / len];
+    let lever = match ShapeKind::from_u32(shape.kind) {
+        Some(ShapeKind::Sphere) => off,
+        Some(ShapeKind::Capsule) => off + d[0] * (n[0] * n[0] + n[1] * n[1]).sqrt() + d[1],
+        Some(ShapeKind::Box) => (0..8)
+            .map(|k| {
+                // Corner `k` (offset included): |n × c|² = |c|² − (n·c)².
+                let c: [f64; 3] = std::array::from_fn(|j| o[j] + if k >> j & 1 == 1 { d[j] } else { -d[j] });
+                let along = n[0] * c[0] + n[1] * c[1] + n[2] * c[2];
+                (c[0] * c[0] + c[1] * c[1] + c[2] * c[2] - along * along).max(0.0).sqrt()
+            })
+            .fold(0.0, f64::max),
+        _ => r,
+    };
+    lever.min(r)
 }
 
 const ID: [f64; 4] = [1.0, 0.0, 0.0, 0.0];

@@ -949,7 +949,7 @@ fn a_clear_check_is_clear_at_every_millisecond() {
 
 #[test]
 fn a_fast_spinning_object_crossing_the_arm_is_never_missed() {
-    // Small rods and spheres at 3–10 m/s, spinning, each aimed at a random point of a random
+    // Small rods, bars and spheres at 3–10 m/s, spinning, each aimed at a random point of a random
     // link of the arm (at rest or moving within its limits) at a random time, passing within
     // -0.1..0.3 m of it. Whenever a check every half millisecond finds a contact, the checker
     // reports one (its samples, spaced by the shape's and the ball's gaps, skip none); when it
@@ -981,10 +981,10 @@ fn a_fast_spinning_object_crossing_the_arm_is_never_missed() {
         // Off the line by a random miss, square to the flight.
         let side = [dir[1], -dir[0], 0.0];
         let sn = (side[0] * side[0] + side[1] * side[1]).sqrt().max(1e-9);
-        let (shape, size) = if case % 3 == 0 {
-            (DebrisShape::sphere(0.05), 0.05)
-        } else {
-            (DebrisShape::capsule(0.15, 0.02), 0.17)
+        let (shape, size) = match case % 3 {
+            0 => (DebrisShape::sphere(0.05), 0.05),
+            1 => (DebrisShape::capsule(0.15, 0.02), 0.17),
+            _ => (DebrisShape::cuboid([0.15, 0.03, 0.02], [0.0; 3]), 0.155),
         };
         let miss = c.r + size + rng.random_range(-0.1..0.3);
         let p_c: [f64; 3] = std::array::from_fn(|k| aim[k] + miss * side[k] / sn);
@@ -1021,4 +1021,111 @@ fn a_fast_spinning_object_crossing_the_arm_is_never_missed() {
         }
     }
     assert!(hits >= 10 && misses >= 10, "cases exercised: {hits} contacts, {misses} clear");
+}
+
+#[test]
+fn a_turning_shapes_points_move_no_faster_than_its_speed_bound() {
+    // Shapes turning at 2 rad/s about fixed axes, the centre still, no bound: over any short
+    // window every point of the shape moves at most `speed_within` × the window. For a box
+    // the bound is exact (its farthest corner from the turn's axis); for a rod it is its end's
+    // distance plus its radius, however small the turn's share across the rod's axis.
+    let shapes = [
+        (DebrisShape::cuboid([0.4, 0.3, 0.02], [0.1, 0.0, 0.0]), true),
+        (DebrisShape::cuboid([0.05, 0.05, 0.6], [0.0; 3]), true),
+        (DebrisShape::capsule(0.6, 0.05), false),
+    ];
+    let axes: [[f64; 3]; 4] = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.6, 0.8], [0.3, 0.5, 0.8]];
+    let omega = 2.0;
+    for (shape, exact) in shapes {
+        for ax in axes {
+            let l = (ax[0] * ax[0] + ax[1] * ax[1] + ax[2] * ax[2]).sqrt();
+            let n = ax.map(|x| x / l);
+            let q_at = |t: f64| {
+                let h = 0.5 * omega * t;
+                [h.cos(), n[0] * h.sin(), n[1] * h.sin(), n[2] * h.sin()]
+            };
+            let poses: Vec<TimedPose> = (0..=30)
+                .map(|k| {
+                    let t = 0.1 * k as f64;
+                    TimedPose { t, p: [0.0; 3], q: q_at(t), sigma: 0.0, sigma_pos: 0.0 }
+                })
+                .collect();
+            let mut w = WorldInTime::new(0.0);
+            w.push_track(1, shape, &poses, After::Hold).unwrap();
+            // Body points: a box's corners; a rod's ends with its radius in 64 directions.
+            let (d, o) = (shape.dims, shape.offset);
+            let mut pts = Vec::new();
+            if shape.kind == dkrrt_msg::ShapeKind::Box as u32 {
+                for s in 0..8 {
+                    let sg = |b: usize| if s >> b & 1 == 1 { 1.0 } else { -1.0 };
+                    pts.push([o[0] + sg(0) * d[0], o[1] + sg(1) * d[1], o[2] + sg(2) * d[2]]);
+                }
+            } else {
+                for e in [-1.0, 1.0] {
+                    for k in 0..64 {
+                        let (a, b) = (k as f64 * 0.7, k as f64 * 1.3);
+                        let u = [a.sin() * b.cos(), a.sin() * b.sin(), a.cos()];
+                        pts.push([d[1] * u[0], d[1] * u[1], e * d[0] + d[1] * u[2]]);
+                    }
+                }
+            }
+            let mut tightest: f64 = 0.0;
+            for k in 0..50 {
+                let (a, dt) = (0.05 + 0.05 * k as f64, 0.01);
+                let v = w.speed_within(0, a, a + dt);
+                let (qa, qb) = (w.pose_at(0, a).1, w.pose_at(0, a + dt).1);
+                for x in &pts {
+                    let (pa, pb) = (
+                        dkrrt_collision::pose::quat_rotate(&qa, x),
+                        dkrrt_collision::pose::quat_rotate(&qb, x),
+                    );
+                    let moved =
+                        ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
+                    assert!(moved <= v * dt + 1e-12, "{shape:?} about {n:?} at {a}: {moved} > {}", v * dt);
+                    tightest = tightest.max(moved / (v * dt));
+                }
+            }
+            if exact {
+                assert!(tightest > 0.99, "{shape:?} about {n:?}: the bound is loose ({tightest})");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_forecast_rod_or_box_reported_end_over_end_is_not_swept_between_steps() {
+    // A still rod (and a still bar) whose forecast attitude alternates between two half turns
+    // of each other, the same shape at every step: between steps it stays where it is (no
+    // sweep through half a turn, no turn speed), and a box with an offset (not its own half
+    // turn) keeps the turns it was given.
+    use dkrrt_msg::{DebrisForecast, ForecastStep};
+    let lay = [std::f64::consts::FRAC_1_SQRT_2, 0.0, std::f64::consts::FRAC_1_SQRT_2, 0.0];
+    let flipped = dkrrt_collision::pose::quat_mul(&lay, &[0.0, 1.0, 0.0, 0.0]);
+    let shapes = [
+        (DebrisShape::capsule(0.6, 0.05), true),
+        (DebrisShape::cuboid([0.05, 0.05, 0.6], [0.0; 3]), true),
+        (DebrisShape::cuboid([0.05, 0.05, 0.6], [0.0, 0.0, 0.2]), false),
+    ];
+    for (shape, symmetric) in shapes {
+        let mut f = <DebrisForecast as Zeroed>::zeroed();
+        (f.count, f.steps, f.dt_s, f.t0_ns) = (1, 10, 0.1, 0);
+        f.tracks[0].id = 3;
+        f.tracks[0].shape = shape;
+        f.tracks[0].bounding_radius = shape.bounding_radius();
+        for k in 0..10 {
+            let q = if k % 2 == 0 { lay } else { flipped };
+            f.tracks[0].steps[k] = ForecastStep { p: [2.0, 0.0, 0.0], q, sigma_m: 0.01, sigma_pos_m: 0.01 };
+        }
+        let mut w = WorldInTime::new(0.0);
+        w.load_forecast(&f);
+        if symmetric {
+            assert!(w.max_speed() < 0.1, "{shape:?}: {}", w.max_speed()); // the bound's growth past the horizon
+                                                                          // Mid-step, the shape's axis is the reported one (up to its sign).
+            let q = w.pose_at(0, 0.25).1;
+            let z = dkrrt_collision::pose::quat_rotate(&q, &[0.0, 0.0, 1.0]);
+            assert!(z[0].abs() > 1.0 - 1e-9, "{shape:?}: axis {z:?}");
+        } else {
+            assert!(w.max_speed() > 10.0, "{shape:?}: {}", w.max_speed());
+        }
+    }
 }
