@@ -17,10 +17,11 @@
 //! they change neither the verdict nor the (capped) clearance, and `V_obs` is the largest
 //! speed of the tracks kept, so a fast object far away no longer shortens every sample step.
 //!
-//! **Speeds from where the samples are.** A track's closing speed is first bounded over the
-//! whole stretch; where that would space samples under 0.1 ms apart (a problem obstacle with a
-//! fast leg somewhere in the stretch), it is bounded again from the current sample to the
-//! stretch's end, still an upper bound for every later step. A check never takes more than
+//! **Speeds from where the samples are.** No step is longer than `MAX_STEP_S` (0.5 s), so at
+//! each sample a track's speeds are bounded over the next 0.5 s only (the forecast intervals
+//! that window overlaps), not over the whole stretch: a fast interval elsewhere (a forecast
+//! bound that jumps at some step, a problem obstacle's fast leg) spaces only the samples near
+//! it. The broad phase still uses the whole stretch's. A check never takes more than
 //! [`Checker::max_samples`] samples (200 000): one that would is not clear, so a check ends
 //! whatever the obstacles' speeds.
 //!
@@ -361,21 +362,17 @@ impl Checker {
             // samples may skip to its end (or as far as c allows past it). The nearest track
             // in time sets the step; a track far away no longer does, however fast.
             let until = self.relief.map_or(t, |r| r.1) - t;
-            let mut step = self.next_step(mask, &closing, &closing_ball, &v_caps, floor, until);
-            if step < REFRESH_STEP_S {
-                // The stretch's speeds bound every track over all of it; one fast only
-                // somewhere (a problem obstacle's fast leg) would space every sample that
-                // tightly. Bound the speeds from this sample to the stretch's end instead
-                // (still an upper bound over the next step).
-                let mut m = mask;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    closing[i] = world.speed_within(i, t, t1c);
-                    closing_ball[i] = world.ball_speed_within(i, t, t1c);
-                }
-                step = self.next_step(mask, &closing, &closing_ball, &v_caps, floor, until);
+            // The next step is at most `MAX_STEP_S`: the tracks' speeds over that window
+            // bound them over it (a fast interval elsewhere in the stretch does not count).
+            let ahead = (t + MAX_STEP_S).min(t1c);
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                closing[i] = world.speed_within(i, t, ahead);
+                closing_ball[i] = world.ball_speed_within(i, t, ahead);
             }
+            let step = self.next_step(mask, &closing, &closing_ball, &v_caps, floor, until);
             if out.samples >= self.max_samples {
                 // Not verified within the samples a check may take: not clear.
                 self.capped += 1;
@@ -493,8 +490,6 @@ impl Checker {
 
 /// The longest step between two samples of a check, s.
 const MAX_STEP_S: f64 = 0.5;
-/// Steps shorter than this refresh the tracks' speed bounds from the sample on, s.
-const REFRESH_STEP_S: f64 = 1e-4;
 /// A check looks at its [`Checker::deadline`] every this many samples.
 pub const DEADLINE_EVERY: u32 = 4096;
 /// The most samples one check takes by default ([`Checker::max_samples`]).

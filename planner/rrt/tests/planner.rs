@@ -1129,3 +1129,25 @@ fn a_forecast_rod_or_box_reported_end_over_end_is_not_swept_between_steps() {
         }
     }
 }
+
+#[test]
+fn a_fast_leg_after_a_still_one_is_not_stepped_over() {
+    // A 2 cm ball holds still 2.4 m from link 4 until 0.59 s, then flies through the link at
+    // 8 m/s (at 0.89 s, and gone 30 ms later): the samples before the fast leg are spaced by
+    // the speeds ahead of them over the longest step, not by the still leg's, and the contact
+    // is found.
+    let t_cross = 0.89;
+    let (_, p0, v) = rod_across_link4(t_cross);
+    let line = |t: f64| -> [f64; 3] { std::array::from_fn(|k| p0[k] + v[k] * t) };
+    let poses: Vec<TimedPose> = (0..=30)
+        .map(|k| {
+            let t = 0.1 * k as f64;
+            TimedPose { t, p: line(t.max(0.59)), q: [1.0, 0.0, 0.0, 0.0], sigma: 0.0, sigma_pos: 0.0 }
+        })
+        .collect();
+    let mut w = WorldInTime::new(0.0);
+    w.push_track(1, DebrisShape::sphere(0.02), &poses, After::Hold).unwrap();
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let r = ch.check(&w, 0.0, 3.0, 3.0, false, |_| START);
+    assert!(!r.ok && (r.t_fail - t_cross).abs() < 0.1, "{r:?}");
+}
