@@ -475,7 +475,6 @@ impl Checker {
         for (k, o) in self.obs.iter().enumerate() {
             let ck = clearance_pairs(&self.caps, o, floor, self.cap, &mut per);
             let i = self.gaps.track[k] as usize;
-            self.gaps.gap[i] = self.gaps.gap[i].max(ck);
             for (p, d) in self.pairs[i].iter_mut().zip(per) {
                 *p = p.max(d);
             }

@@ -276,7 +276,7 @@ fn a_hull_is_judged_by_its_vertices_not_by_its_box() {
 }
 
 #[test]
-fn no_arm_point_moves_faster_than_the_lever_bound() {
+fn no_arm_point_moves_faster_than_the_lever_bounds() {
     let poser = ArmPoser::new(ArmModel::default_arm());
     let lever = *poser.lever_arms();
     assert!(lever.iter().all(|l| *l > 0.0 && *l < 5.0), "{lever:?}");
@@ -284,6 +284,7 @@ fn no_arm_point_moves_faster_than_the_lever_bound() {
     let mut rng = SmallRng::seed_from_u64(9);
     let (mut a, mut b) = ([PosedCapsule::default(); NJ], [PosedCapsule::default(); NJ]);
     let mut worst: f64 = 0.0;
+    let mut worst_own = [0.0f64; NJ];
     for _ in 0..2000 {
         let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.5..2.5));
         let dq: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-0.01..0.01));
@@ -291,16 +292,26 @@ fn no_arm_point_moves_faster_than_the_lever_bound() {
         poser.pose(&q, &mut a);
         poser.pose(&q2, &mut b);
         let bound: f64 = (0..NJ).map(|i| dq[i].abs() * lever[i]).sum();
+        // Per capsule: only the joints before it, with their lever arms to it alone.
+        let own = poser.capsule_speeds(&dq);
         for k in 0..NJ {
+            assert!(own[k] <= bound * (1.0 + 1e-12), "capsule {k}: {} > {bound}", own[k]);
             for (x, y) in [(a[k].a, b[k].a), (a[k].b, b[k].b)] {
                 let m = ((x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)).sqrt();
                 // Chords are shorter than arcs: the bound holds with room to spare.
                 assert!(m <= bound * (1.0 + 1e-9), "{m} > {bound}");
+                assert!(m <= own[k] * (1.0 + 1e-9), "capsule {k}: {m} > {}", own[k]);
                 worst = worst.max(m / bound);
+                worst_own[k] = worst_own[k].max(m / own[k]);
             }
         }
     }
     assert!(worst > 0.3, "the bound is not loose beyond use: worst ratio {worst}");
+    // (The base capsule's segment lies on the first joint's axis: its ends never move.)
+    assert!(worst_own[1..].iter().all(|w| *w > 0.3), "a capsule's bound is loose beyond use: {worst_own:?}");
+    // The base's capsule moves only with the first joint: far slower than the hand.
+    let all = poser.capsule_speeds(&[1.0; NJ]);
+    assert!(all[0] < 0.2 * all[NJ - 1], "{all:?}");
 }
 
 fn scene(rng: &mut SmallRng, n: usize) -> Vec<Obstacle> {
