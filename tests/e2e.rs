@@ -595,6 +595,13 @@ fn bad_command_lines_are_refused_up_front() {
     let (code, err) = run(&["launch", "--scenario", "/dev/zero"]);
     assert_eq!(code, Some(2));
     assert!(err.contains("/dev/zero") && err.contains("not a regular file"), "{err}");
+    // A UDP link whose two ends are one address (it waited 10 s for states it sent itself).
+    let (code, err) = run(&["udp-driver", "--run", "x", "--listen", "127.0.0.1:50009", "--arm", "127.0.0.1:50009"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--listen and --arm are both 127.0.0.1:50009"), "{err}");
+    let (code, err) = run(&["arm-emulator", "--listen", "127.0.0.1:50009", "--driver", "127.0.0.1:50009"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--listen and --driver are both 127.0.0.1:50009"), "{err}");
     // `--goal`: the documented comma form and the space form with negative numbers both parse
     // (a wrong count is refused naming the flag).
     let (code, err) = run(&["goto", "--goal", "1,2", "--run", "x"]);

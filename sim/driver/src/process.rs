@@ -117,6 +117,12 @@ pub fn run(
     if sc.run.mode != Mode::Realtime {
         return Err("udp-driver: run.mode must be \"realtime\": the arm keeps its own time".into());
     }
+    if ep.listen == ep.arm {
+        return Err(format!(
+            "udp-driver: --listen and --arm are both {}: the driver would send its commands to itself",
+            ep.listen
+        ));
+    }
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = contract_limits(&model);
     let v_lim = model.limits().v_max;

@@ -63,6 +63,11 @@ pub fn run(
     stats: Option<&Path>,
 ) -> Result<EmulatorReport, String> {
     signals::install();
+    if listen == driver {
+        return Err(format!(
+            "arm-emulator: --listen and --driver are both {listen}: the arm would send its states to itself"
+        ));
+    }
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let rt = rtsetup::apply_if(true, &RtOptions::new(sc.sim.cpu, sc.sim.fifo_priority, sc.sim.mlockall));
     for w in &rt.warnings {
