@@ -134,16 +134,17 @@ impl Rls {
                 *t += e * kj;
             }
         }
-        // P ← (P − Pφ φᵀP / denom) / λ, symmetrised.
+        // P ← (P − Pφ φᵀP / denom) / λ, column by column (contiguous, so it vectorises). P
+        // stays exactly symmetric: it starts as p0·I, and entries (i, j) and (j, i) are the
+        // same operations on the same numbers (P's two equal entries, Pφ_i·Pφ_j = Pφ_j·Pφ_i),
+        // so no symmetrising is needed (test `the_covariance_stays_exactly_symmetric`).
         let inv_lam = 1.0 / lam;
         let mut trace = 0.0;
         let mut bad = false;
         for j in 0..d {
-            for i in 0..=j {
-                let v = (0.5 * (self.p[j * d + i] + self.p[i * d + j]) - self.pphi[i] * self.pphi[j] / denom)
-                    * inv_lam;
-                self.p[j * d + i] = v;
-                self.p[i * d + j] = v;
+            let pj = self.pphi[j];
+            for (v, pi) in self.p[j * d..(j + 1) * d].iter_mut().zip(&self.pphi) {
+                *v = (*v - pi * pj / denom) * inv_lam;
             }
             let dj = self.p[j * d + j];
             bad |= !(dj > 0.0) || !dj.is_finite();

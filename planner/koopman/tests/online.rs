@@ -53,6 +53,43 @@ fn rls_converges_to_the_batch_least_squares_solution() {
 }
 
 #[test]
+fn the_covariance_stays_exactly_symmetric() {
+    // The update writes P column by column without symmetrising: entries (i, j) and (j, i)
+    // must come out bit for bit equal, and equal to the symmetrised update
+    // (0.5·(P_ij + P_ji) − Pφ_i·Pφ_j / denom) / λ that it replaced.
+    let (d, q, n) = (23, 7, 400);
+    let (_, phis, ys) = random_problem(9, n, d, q, 0.1);
+    let cfg = RlsConfig { lambda: 0.97, p0: 50.0, max_trace: 1e12 };
+    let mut rls = Rls::new(d, q, cfg);
+    let mut theta = vec![0.0; q * d];
+    let mut reference = rls.covariance().to_vec();
+    for k in 0..n {
+        let phi = &phis[k * d..(k + 1) * d];
+        let pphi: Vec<f64> = (0..d).map(|i| (0..d).fold(0.0, |a, j| a + reference[j * d + i] * phi[j])).collect();
+        let st = rls.update(&mut theta, q, phi, &ys[k * q..(k + 1) * q]);
+        assert!(!st.reset);
+        let p = rls.covariance();
+        let denom = cfg.lambda + phi.iter().zip(&pphi).map(|(a, b)| a * b).sum::<f64>();
+        let mut next = reference.clone();
+        for j in 0..d {
+            for i in 0..=j {
+                let v = (0.5 * (reference[j * d + i] + reference[i * d + j]) - pphi[i] * pphi[j] / denom)
+                    * (1.0 / cfg.lambda);
+                (next[j * d + i], next[i * d + j]) = (v, v);
+            }
+        }
+        for i in 0..d {
+            for j in 0..d {
+                assert_eq!(p[j * d + i].to_bits(), p[i * d + j].to_bits(), "P[{i},{j}] after update {k}");
+                // Pφ summed in the update's order (over columns): the same bits.
+                assert_eq!(p[j * d + i].to_bits(), next[j * d + i].to_bits(), "P[{i},{j}] after update {k}");
+            }
+        }
+        reference = p.to_vec();
+    }
+}
+
+#[test]
 fn forgetting_factor_tracks_a_change() {
     let (d, q, n) = (5, 2, 300);
     let (t1, p1, y1) = random_problem(2, n, d, q, 0.0);
