@@ -596,7 +596,8 @@ fn bad_command_lines_are_refused_up_front() {
     assert_eq!(code, Some(2));
     assert!(err.contains("/dev/zero") && err.contains("not a regular file"), "{err}");
     // A UDP link whose two ends are one address (it waited 10 s for states it sent itself).
-    let (code, err) = run(&["udp-driver", "--run", "x", "--listen", "127.0.0.1:50009", "--arm", "127.0.0.1:50009"]);
+    let (code, err) =
+        run(&["udp-driver", "--run", "x", "--listen", "127.0.0.1:50009", "--arm", "127.0.0.1:50009"]);
     assert_eq!(code, Some(2));
     assert!(err.contains("--listen and --arm are both 127.0.0.1:50009"), "{err}");
     let (code, err) = run(&["arm-emulator", "--listen", "127.0.0.1:50009", "--driver", "127.0.0.1:50009"]);

@@ -65,7 +65,8 @@ fn the_covariance_stays_exactly_symmetric() {
     let mut reference = rls.covariance().to_vec();
     for k in 0..n {
         let phi = &phis[k * d..(k + 1) * d];
-        let pphi: Vec<f64> = (0..d).map(|i| (0..d).fold(0.0, |a, j| a + reference[j * d + i] * phi[j])).collect();
+        let pphi: Vec<f64> =
+            (0..d).map(|i| (0..d).fold(0.0, |a, j| a + reference[j * d + i] * phi[j])).collect();
         let st = rls.update(&mut theta, q, phi, &ys[k * q..(k + 1) * q]);
         assert!(!st.reset);
         let p = rls.covariance();
