@@ -623,6 +623,14 @@ fn main() -> ExitCode {
                 "{} episodes x methods in {wall_s:.1} s wall ({threads} threads, seed {seed})",
                 rows.len()
             );
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            if threads > 1 {
+                println!(
+                    "note: the lockstep speed is each episode's plant time over its wall time, here with {threads} \
+                     episodes at once on {cores} cores{}; --threads 1 gives each episode the machine",
+                    if threads >= cores { " (no core left to step their debris side ahead)" } else { "" }
+                );
+            }
             let stale: u64 = rows.iter().map(|r| r.stale_forecast_reads).sum();
             if stale > 0 {
                 println!(

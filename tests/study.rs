@@ -28,6 +28,10 @@ fn a_small_study_writes_every_row_and_the_planner_beats_the_straight_motion() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("fast-crossing  dk-rrt"), "{stdout}");
+    // With the default threads (one per core) episodes share the cores: the table's lockstep
+    // speed is said to be per episode, beside others.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    assert_eq!(stdout.contains("note: the lockstep speed is each episode's"), cores > 1, "{stdout}");
     let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
     let rows = doc["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 4);
