@@ -203,89 +203,92 @@ pub fn run(
             _ => {}
         }
         // 2. Every datagram waiting: new states are published in arrival order.
-        while readable {
-            let n = match sock.recv_from(&mut rbuf) {
-                Ok((n, _)) => n,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
-                Err(_) => break,
-            };
-            let now = mono_ns();
-            let s = match core.on_datagram(now, &rbuf[..n]) {
-                Ok(s) => s,
-                Err(Dropped::Invalid(dkrrt_udp::PacketError::NonFinite(_))) => {
-                    meas.non_finite_steps += 1;
-                    continue;
+        // (A loop inside an if: the loop ends on `break`, never on its condition.)
+        if readable {
+            loop {
+                let n = match sock.recv_from(&mut rbuf) {
+                    Ok((n, _)) => n,
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                    Err(_) => break,
+                };
+                let now = mono_ns();
+                let s = match core.on_datagram(now, &rbuf[..n]) {
+                    Ok(s) => s,
+                    Err(Dropped::Invalid(dkrrt_udp::PacketError::NonFinite(_))) => {
+                        meas.non_finite_steps += 1;
+                        continue;
+                    }
+                    Err(_) => continue,
+                };
+                if let Some(t) = last_state_ns {
+                    interval.record_ns(now - t);
                 }
-                Err(_) => continue,
-            };
-            if let Some(t) = last_state_ns {
-                interval.record_ns(now - t);
-            }
-            last_state_ns = Some(now);
-            let max_speed = s.qd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let step = policy.tick(s.tick, max_speed, signals::stop_requested() || s.stopping);
-            if step.began && policy.stopped_by_signal {
-                eprintln!("udp-driver: stop requested: bringing the arm to rest");
-            }
-            if step.engage_brakes {
-                eprintln!("udp-driver: the arm is not at rest 5 s after the stop: brakes engaged");
-            }
-            forced = step.forced;
-            // The simulated perception, on the arm's clock: the world steps every tick the arm
-            // advanced (lost states too), checked against the measured arm.
-            if let (Some(d), Some(p)) = (debris.as_mut(), obs_pub.as_mut()) {
-                if meas.ticks == 0 {
-                    d.check(&s.q);
+                last_state_ns = Some(now);
+                let max_speed = s.qd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let step = policy.tick(s.tick, max_speed, signals::stop_requested() || s.stopping);
+                if step.began && policy.stopped_by_signal {
+                    eprintln!("udp-driver: stop requested: bringing the arm to rest");
                 }
-                let n = if meas.ticks == 0 { 0 } else { s.tick.saturating_sub(last_tick) };
-                for i in 0..n {
-                    let q = if i + 1 == n { &s.q } else { &final_q };
-                    let rep = d
-                        .tick(dt_s, q, &mut obs_msg, |m| p.publish(m).map(|_| ()))
-                        .map_err(|e| e.to_string())?;
-                    if let (true, Some(c)) = (rep.first_contact, d.stats.first_contact) {
-                        eprintln!(
+                if step.engage_brakes {
+                    eprintln!("udp-driver: the arm is not at rest 5 s after the stop: brakes engaged");
+                }
+                forced = step.forced;
+                // The simulated perception, on the arm's clock: the world steps every tick the arm
+                // advanced (lost states too), checked against the measured arm.
+                if let (Some(d), Some(p)) = (debris.as_mut(), obs_pub.as_mut()) {
+                    if meas.ticks == 0 {
+                        d.check(&s.q);
+                    }
+                    let n = if meas.ticks == 0 { 0 } else { s.tick.saturating_sub(last_tick) };
+                    for i in 0..n {
+                        let q = if i + 1 == n { &s.q } else { &final_q };
+                        let rep = d
+                            .tick(dt_s, q, &mut obs_msg, |m| p.publish(m).map(|_| ()))
+                            .map_err(|e| e.to_string())?;
+                        if let (true, Some(c)) = (rep.first_contact, d.stats.first_contact) {
+                            eprintln!(
                             "udp-driver: COLLISION: link {} hit debris {} at t = {:.3} s (distance {:.4} m)",
                             c.link, c.debris_id, c.t_s, c.distance_m
                         );
+                        }
                     }
                 }
-            }
-            last_tick = s.tick;
-            // Measured figures.
-            meas.ticks += 1;
-            let mut ratio = 0.0f64;
-            for i in 0..NJ {
-                ratio = ratio.max(s.qd[i].abs() / v_lim[i]);
-            }
-            meas.max_velocity_ratio = meas.max_velocity_ratio.max(ratio);
-            meas.velocity_limit_ticks += u64::from(ratio > 1.0);
-            meas.brake_ticks += u64::from(s.brakes);
-            if s.brakes && !brakes_before && commands_flowed {
-                meas.brake_engagements += 1;
-            }
-            commands_flowed |= !s.brakes;
-            brakes_before = s.brakes;
-            (final_q, final_qd) = (s.q, s.qd);
-            msg.header.stamp_ns = s.plant_ns;
-            msg.header.flags = if s.brakes { FLAG_BRAKE_ENGAGED } else { 0 }
-                | if step.stopping { FLAG_STOPPING } else { 0 }
-                | if step.last { FLAG_END_OF_RUN } else { 0 };
-            msg.q = s.q;
-            msg.qd = s.qd;
-            msg.tau = s.tau;
-            let seq = state_pub.publish(&mut msg).map_err(|e| e.to_string())?;
-            core.published(seq, s.arm_seq);
-            pending = Some((seq, now));
-            if forced || step.last {
-                // Brakes: the arm holds; the tracker's commands are read, not sent.
-                let n = core.hold(now, &mut cbuf);
-                send_errors += u64::from(sock.send_to(&cbuf[..n], ep.arm).is_err());
-                holds_sent += 1;
-            }
-            if step.last {
-                ended = true;
-                break;
+                last_tick = s.tick;
+                // Measured figures.
+                meas.ticks += 1;
+                let mut ratio = 0.0f64;
+                for i in 0..NJ {
+                    ratio = ratio.max(s.qd[i].abs() / v_lim[i]);
+                }
+                meas.max_velocity_ratio = meas.max_velocity_ratio.max(ratio);
+                meas.velocity_limit_ticks += u64::from(ratio > 1.0);
+                meas.brake_ticks += u64::from(s.brakes);
+                if s.brakes && !brakes_before && commands_flowed {
+                    meas.brake_engagements += 1;
+                }
+                commands_flowed |= !s.brakes;
+                brakes_before = s.brakes;
+                (final_q, final_qd) = (s.q, s.qd);
+                msg.header.stamp_ns = s.plant_ns;
+                msg.header.flags = if s.brakes { FLAG_BRAKE_ENGAGED } else { 0 }
+                    | if step.stopping { FLAG_STOPPING } else { 0 }
+                    | if step.last { FLAG_END_OF_RUN } else { 0 };
+                msg.q = s.q;
+                msg.qd = s.qd;
+                msg.tau = s.tau;
+                let seq = state_pub.publish(&mut msg).map_err(|e| e.to_string())?;
+                core.published(seq, s.arm_seq);
+                pending = Some((seq, now));
+                if forced || step.last {
+                    // Brakes: the arm holds; the tracker's commands are read, not sent.
+                    let n = core.hold(now, &mut cbuf);
+                    send_errors += u64::from(sock.send_to(&cbuf[..n], ep.arm).is_err());
+                    holds_sent += 1;
+                }
+                if step.last {
+                    ended = true;
+                    break;
+                }
             }
         }
         // 3. The tracker's command answering the newest state, within the tick.
