@@ -23,6 +23,8 @@ fn small_study() {
     for r in &rows {
         assert!((0.0..=1.0).contains(&r.contained), "{r:?}");
         assert!(r.bound_m > 0.0 && r.surface_err_m >= 0.0 && r.bound_ratio > 0.0, "{r:?}");
+        assert!(r.surface_err_p99_m >= r.surface_err_m, "{r:?}");
+        assert!(r.oracle_track_ratio > 0.0 && r.oracle_local_ratio > 0.0, "{r:?}");
     }
     // The online-calibrated bound of the shipped method contains the true shape (it measures
     // 98-100 % per scene and horizon in this small, seeded study; the README's medium study
@@ -64,6 +66,29 @@ fn small_study() {
 }
 
 #[test]
+fn the_hindsight_bound_scales_each_sample_by_its_tracks_error() {
+    use dkrrt_predictor::eval::oracle_ratio;
+    // Two tracks erring 1 and 10 at every forecast: sized by its track's median error, a
+    // bound holds every sample at its own error (ratio 1), where one bound for all would be
+    // 10 against the median error of 5.5.
+    let mut sf = Vec::new();
+    let mut of = Vec::new();
+    for k in 0..10 {
+        sf.push((0.0, 1.0));
+        of.push((0, 3, 0.25 * k as f64));
+        sf.push((0.0, 10.0));
+        of.push((1, 3, 0.25 * k as f64)); // same id, another recording: another track
+    }
+    assert_eq!(oracle_ratio(&sf, &of, f64::INFINITY, 5.5), 1.0);
+    // A track erring 1 and 3 in turn: its median (2) must be stretched by 1.5 to hold the 3s
+    // (ratio 1.5); sized within a window holding the sample alone, each sample is its own size.
+    let sf: Vec<(f64, f64)> = (0..20).map(|k| (0.0, if k % 2 == 0 { 1.0 } else { 3.0 })).collect();
+    let of: Vec<(u32, u32, f64)> = (0..20).map(|k| (0, 7, k as f64)).collect();
+    assert!((oracle_ratio(&sf, &of, f64::INFINITY, 2.0) - 1.5).abs() < 1e-12);
+    assert!((oracle_ratio(&sf, &of, 0.5, 2.0) - 1.0).abs() < 1e-12);
+}
+
+#[test]
 fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
     use dkrrt_predictor::eval::{deep_vs_edmd, deep_vs_edmd_text};
     let r = |scene: &str, method: &str, h: f64, pos: f64, att: f64| StudyRow {
@@ -79,6 +104,9 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         bound_m: 0.1,
         surface_err_m: 0.05,
         bound_ratio: 2.0,
+        surface_err_p99_m: 0.2,
+        oracle_track_ratio: 3.0,
+        oracle_local_ratio: 2.5,
         obs_pos_err_m: None,
         obs_axis_err_rad: None,
     };
