@@ -103,7 +103,8 @@ pub struct StudyRow {
     /// ([`oracle_ratio`]): the median of such a bound holding 99 % of the samples over the
     /// median error, with the size taken as the track's median error over the whole run, and
     /// over the forecasts issued within [`ORACLE_WINDOW_S`] of each one (the sample itself
-    /// included). Where even these exceed 3, no bound can meet the ≤ 3× target at 99 %.
+    /// included). Where even these exceed 3, a bound meeting the ≤ 3× target at 99 % would
+    /// have to know each forecast's error better than the track's errors around it tell.
     pub oracle_track_ratio: f64,
     pub oracle_local_ratio: f64,
     /// Rows of a [`View`] (e.g. the depth camera): the median error of the observations
@@ -563,7 +564,6 @@ pub fn evaluate(
 
 pub use crate::symmetry::symmetric_angle;
 
-/// Median (NaN for an empty set; NaN samples sort last).
 /// The `p` quantile of ascending `v` by nearest rank (the smallest value with at least a
 /// share `p` of `v` at or below it); NaN when empty.
 pub fn quantile_sorted(v: &[f64], p: f64) -> f64 {
@@ -606,6 +606,7 @@ pub fn oracle_ratio(sf: &[(f64, f64)], of: &[(u32, u32, f64)], window: f64, medi
     quantile_sorted(&norm, 0.99) * median(&mut size) / median_err
 }
 
+/// Median (NaN for an empty set; NaN samples sort last).
 pub fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
