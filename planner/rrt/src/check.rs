@@ -327,18 +327,13 @@ impl Checker {
                 (centre, radius) = self.reach;
             }
         }
-        // Per track kept: how fast its surface moves over the stretch, and its bounding
-        // ball's (no rotation: slower for a tumbling shape). A gap to capsule `k` closes at
-        // most at that plus the capsule's speed.
+        // Per track kept, how fast its surface and its bounding ball (no rotation: slower for
+        // a tumbling shape) move; a gap to capsule `k` closes at most at that plus the
+        // capsule's speed. The broad phase bounds them over the whole stretch; each step
+        // below bounds them again over its own window.
         let mut closing = [0.0f64; MAX_TRACKS];
         let mask = world.near_speeds(t0, t1c, &centre, radius + self.cap, half, &mut closing);
         let mut closing_ball = [0.0f64; MAX_TRACKS];
-        let mut m = mask;
-        while m != 0 {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            closing_ball[i] = world.ball_speed_within(i, t0, t1c);
-        }
         let mut t = t0;
         loop {
             let floor = self.floor_at(t);
