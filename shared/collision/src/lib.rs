@@ -454,18 +454,9 @@ pub fn proximity(
 pub fn clearance(arm: &[PosedCapsule], obstacles: &[Obstacle], stop_below: f64, cap: f64) -> f64 {
     let mut best = cap;
     for o in obstacles {
-        for c in arm {
-            let lower = o.lower_bound(c);
-            if lower >= best {
-                continue;
-            }
-            let d = o.distance(c);
-            if d < best {
-                best = d;
-                if best < stop_below {
-                    return best;
-                }
-            }
+        best = clearance_one(arm, o, stop_below, best, |_, _| {});
+        if best < stop_below {
+            return best;
         }
     }
     best
@@ -482,19 +473,40 @@ pub fn clearance_pairs(
     cap: f64,
     pairs: &mut [f64],
 ) -> f64 {
-    let mut best = cap;
+    let mut reached = 0;
+    let best = clearance_one(arm, o, stop_below, cap, |k, d| {
+        pairs[k] = d;
+        reached = k + 1;
+    });
+    if best < stop_below {
+        pairs[reached..arm.len()].fill(f64::NEG_INFINITY);
+    }
+    best
+}
+
+/// The pairs of `arm` with one obstacle, below `best` (returned lowered to the smallest
+/// distance measured; at once when that is below `stop_below`): a pair whose bounding spheres
+/// are `best` or more apart is not measured. `pair(k, d)`: capsule `k`'s distance, or its
+/// spheres' lower bound where not measured.
+#[inline(always)]
+fn clearance_one(
+    arm: &[PosedCapsule],
+    o: &Obstacle,
+    stop_below: f64,
+    mut best: f64,
+    mut pair: impl FnMut(usize, f64),
+) -> f64 {
     for (k, c) in arm.iter().enumerate() {
         let lower = o.lower_bound(c);
         if lower >= best {
-            pairs[k] = lower;
+            pair(k, lower);
             continue;
         }
         let d = o.distance(c);
-        pairs[k] = d;
+        pair(k, d);
         if d < best {
             best = d;
             if best < stop_below {
-                pairs[k + 1..arm.len()].fill(f64::NEG_INFINITY);
                 return best;
             }
         }

@@ -373,6 +373,39 @@ fn proximity_and_clearance_agree_with_all_pairs() {
 }
 
 #[test]
+fn clearance_pairs_is_clearance_per_obstacle_with_a_lower_bound_per_capsule() {
+    let poser = ArmPoser::new(ArmModel::default_arm());
+    let mut rng = SmallRng::seed_from_u64(13);
+    let mut caps = [PosedCapsule::default(); NJ];
+    let mut pairs = [0.0; NJ];
+    let (mut measured, mut early) = (0, 0);
+    for _ in 0..200 {
+        let obs = scene(&mut rng, 8);
+        let q: [f64; NJ] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+        poser.pose(&q, &mut caps);
+        for o in &obs {
+            for (stop, cap) in [(0.0, 0.5), (0.1, f64::INFINITY)] {
+                let c = clearance_pairs(&caps, o, stop, cap, &mut pairs);
+                assert_eq!(c.to_bits(), clearance(&caps, std::slice::from_ref(o), stop, cap).to_bits());
+                for (k, p) in pairs.iter().enumerate() {
+                    let d = o.distance(&caps[k]);
+                    assert!(*p <= d + 1e-12, "capsule {k}: {p} above its distance {d}");
+                    measured += (*p == d) as usize;
+                }
+                if c < stop {
+                    early += 1;
+                } else {
+                    // Every pair reached: the result is the least of them (capped).
+                    let least = pairs.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+                    assert_eq!(c, least.min(cap));
+                }
+            }
+        }
+    }
+    assert!(measured > 1000 && early > 10, "{measured} pairs measured, {early} early returns");
+}
+
+#[test]
 fn posing_and_checking_allocate_nothing() {
     let poser = ArmPoser::new(ArmModel::default_arm());
     let mut rng = SmallRng::seed_from_u64(12);
