@@ -298,11 +298,11 @@ impl WorldInTime {
         self.obstacles_gapped(t, extra, mask, near, out, None);
     }
 
-    /// [`WorldInTime::obstacles_within`], and with `gaps`: for every track `i` of `mask`, a
-    /// lower bound on the clearance between its inflated shape and the arm (`near.arm`) in
-    /// `gaps.gap[i]` (from the bounding spheres: exact enough for the tracks left out, which
-    /// lie `near.cap` or more away), and for every obstacle written its track in
-    /// `gaps.track`. `gaps` needs `near`.
+    /// [`WorldInTime::obstacles_within`], and with `gaps`: for every track `i` of `mask` and
+    /// arm capsule `k`, a lower bound on the clearance between its inflated shape and the
+    /// capsule in `gaps.ball[i][k]` (from the bounding spheres: exact enough for the tracks
+    /// left out, which lie `near.cap` or more away), and for every obstacle written its track
+    /// in `gaps.track`. `gaps` needs `near`.
     pub fn obstacles_gapped(
         &self,
         t: f64,
@@ -327,7 +327,6 @@ impl WorldInTime {
                 let g_arm = dist3(&s.p, nr.centre) - r - nr.radius;
                 if g_arm >= nr.cap {
                     if let Some(g) = gaps.as_deref_mut() {
-                        g.gap[i] = g_arm;
                         g.ball[i] = [g_arm; NJ];
                     }
                     continue;
@@ -343,7 +342,6 @@ impl WorldInTime {
                 }
                 let g_caps = per.iter().fold(f64::INFINITY, |a, &b| a.min(b));
                 if let Some(g) = gaps.as_deref_mut() {
-                    g.gap[i] = g_arm.max(g_caps);
                     // Each capsule lies in the arm's sphere too.
                     g.ball[i] = per.map(|d| d.max(g_arm));
                     g.track[out.len().min(MAX_TRACKS - 1)] = i as u8;
@@ -504,8 +502,6 @@ fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 /// obstacle written ([`WorldInTime::obstacles_gapped`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Gaps {
-    /// `gap[i]`: every point of track `i`'s inflated shape is at least this far from the arm, m.
-    pub gap: [f64; MAX_TRACKS],
     /// `ball[i][k]`: every point of the ball about track `i`'s centre of radius `radius +
     /// σ_pos` + the inflation, which holds every obstacle built for it, is at
     /// least this far from the arm's capsule `k` (from the bounding spheres; its surface moves
@@ -517,11 +513,7 @@ pub struct Gaps {
 
 impl Default for Gaps {
     fn default() -> Self {
-        Gaps {
-            gap: [f64::INFINITY; MAX_TRACKS],
-            ball: [[f64::INFINITY; NJ]; MAX_TRACKS],
-            track: [0; MAX_TRACKS],
-        }
+        Gaps { ball: [[f64::INFINITY; NJ]; MAX_TRACKS], track: [0; MAX_TRACKS] }
     }
 }
 
