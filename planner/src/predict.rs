@@ -163,11 +163,11 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
 /// noise, or 8 % of the object's size if more (measured per observation: p99 ≈ 0.34 × its
 /// estimated radius). Their errors are heavy-tailed and come in runs as an object turns its
 /// sides, so: Huber updates beyond 3 deviations, an impulse only on two failing model pairs
-/// in a row, the published bound at least 3 of the filter's own deviations (a young track's
-/// velocity), and a track dropped while its object was hidden taken up again within 5 s.
+/// in a row, and a track dropped while its object was hidden taken up again within 5 s.
 /// Far views are noisier: a pixel spans more, and a far object shows few of them, so the
 /// noise is also at least [`DEPTH_POS_SIGMA_PIXELS`] of a pixel's span at the object's range
-/// from `camera`'s optical centre. Each is off for the pose sensor.
+/// from `camera`'s optical centre. Each is off for the pose sensor. (The published bound
+/// holds the filter's own deviations for both, `PredictorConfig::track_sigmas`.)
 pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig) {
     cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
     cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
@@ -175,7 +175,6 @@ pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig)
     cfg.event_persist = 2;
     cfg.event_max_dv = DEPTH_EVENT_MAX_DV;
     cfg.pos_sigma_per_m = DEPTH_POS_SIGMA_PER_M;
-    cfg.track_sigmas = 3.0;
     cfg.revive_s = 5.0;
     cfg.front_end_margin_m = dkrrt_depthpose::perception::ERROR_MARGIN_M;
     cfg.pos_sigma_per_range = DEPTH_POS_SIGMA_PIXELS * camera.fov_y_rad / camera.height.max(1) as f64;

@@ -13,7 +13,11 @@
 //! * evaluation: every `eval_every` seconds of arrival time after `warmup`, forecast all
 //!   tracks; at each horizon `h` compare the state at `t0 + h` (`t0` = the track's last
 //!   observation time) with the truth: position error ‖p̂ − p‖ and attitude error (rotation
-//!   angle between q̂ and q). Rows report the median over all (instant, track) pairs.
+//!   angle between q̂ and q). Rows report the median over all (instant, track) pairs;
+//! * young tracks: the same runs replayed again through a fresh predictor over their first
+//!   [`YOUNG_S`] seconds (every track starts with the run), forecasting every [`YOUNG_EVERY`]
+//!   seconds from the first forecast on: the forecasts the warm-up leaves out, those of tracks
+//!   whose filter is still converging, scored apart ([`StudyRow::young_contained`]).
 
 use crate::filter::quat_angle;
 use crate::models::{FitConfig, Method, Models, Segment, TrainingSet};
@@ -107,6 +111,10 @@ pub struct StudyRow {
     /// have to know each forecast's error better than the track's errors around it tell.
     pub oracle_track_ratio: f64,
     pub oracle_local_ratio: f64,
+    /// Young tracks ([`YOUNG_S`], module docs): the number of (instant, track) samples at this
+    /// horizon and the share of them contained as [`StudyRow::contained`] counts it.
+    pub young_n: usize,
+    pub young_contained: f64,
     /// Rows of a [`View`] (e.g. the depth camera): the median error of the observations
     /// themselves against the truth at their measurement time, position, m…
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -485,6 +493,11 @@ pub fn surface_sample(
     }
 }
 
+/// The young-track evaluation covers the first this many seconds of each held-out run.
+pub const YOUNG_S: f64 = 1.0;
+/// … forecasting every this many seconds of it.
+pub const YOUNG_EVERY: f64 = 0.05;
+
 /// Replay a held-out recording through a predictor and collect forecast errors at the
 /// horizons (seconds; rounded to model steps).
 pub fn evaluate(
@@ -493,6 +506,20 @@ pub fn evaluate(
     horizons: &[f64],
     warmup: f64,
     eval_every: f64,
+    out: &mut Errors,
+) {
+    evaluate_until(pred, rec, horizons, warmup, eval_every, f64::INFINITY, out)
+}
+
+/// [`evaluate`] with forecasts issued at arrival times up to `until` only (the replay stops
+/// there).
+pub fn evaluate_until(
+    pred: &mut DebrisPredictor,
+    rec: &Recording,
+    horizons: &[f64],
+    warmup: f64,
+    eval_every: f64,
+    until: f64,
     out: &mut Errors,
 ) {
     let dt = pred.models().dt;
@@ -509,6 +536,9 @@ pub fn evaluate(
     // The latest shape estimate per id (estimated shapes only).
     let mut seen: Vec<(u32, DebrisShape, f64)> = Vec::new();
     for (i, o) in rec.obs.iter().enumerate() {
+        if o.t_avail > until {
+            break;
+        }
         let accepted = !matches!(pred.observe(o), crate::predictor::ObserveOutcome::Rejected(_));
         if let (true, Some(&(sh, r))) = (accepted, rec.obs_shapes.get(i)) {
             match seen.iter_mut().find(|e| e.0 == o.id) {
@@ -563,6 +593,11 @@ pub fn evaluate(
 }
 
 pub use crate::symmetry::symmetric_angle;
+
+/// The share of `(bound, excess)` samples with the excess within the bound (0 when none).
+pub fn contained_share(samples: &[(f64, f64)]) -> f64 {
+    samples.iter().filter(|(b, e)| e <= b).count() as f64 / samples.len().max(1) as f64
+}
 
 /// The `p` quantile of ascending `v` by nearest rank (the smallest value with at least a
 /// share `p` of `v` at or below it); NaN when empty.
@@ -699,14 +734,18 @@ pub fn run_study_views(
                 }
                 None => (&test, None, cfg.predictor),
             };
+            let mut young = Errors::default();
             for rec in recs {
                 let mut pred = DebrisPredictor::new(models.clone(), pcfg);
                 evaluate(&mut pred, rec, &cfg.horizons, cfg.warmup, cfg.eval_every, &mut errs);
+                let mut pred = DebrisPredictor::new(models.clone(), pcfg);
+                evaluate_until(&mut pred, rec, &cfg.horizons, 0.0, YOUNG_EVERY, YOUNG_S, &mut young);
             }
             for (hj, &h) in cfg.horizons.iter().enumerate() {
                 let n = errs.pos.get(hj).map_or(0, |v| v.len());
                 let sf = errs.surface.get(hj).map_or(&[][..], |v| &v[..]);
-                let contained = sf.iter().filter(|(b, e)| e <= b).count() as f64 / sf.len().max(1) as f64;
+                let contained = contained_share(sf);
+                let ysf = young.surface.get(hj).map_or(&[][..], |v| &v[..]);
                 let bound_m = median(&mut sf.iter().map(|s| s.0).collect::<Vec<_>>());
                 let mut errs_m = sf.iter().map(|s| s.1).collect::<Vec<_>>();
                 let surface_err_m = median(&mut errs_m);
@@ -729,6 +768,8 @@ pub fn run_study_views(
                     surface_err_p99_m,
                     oracle_track_ratio: oracle(f64::INFINITY),
                     oracle_local_ratio: oracle(ORACLE_WINDOW_S),
+                    young_n: ysf.len(),
+                    young_contained: contained_share(ysf),
                     obs_pos_err_m: obs_err.map(|e| e.0),
                     obs_axis_err_rad: obs_err.map(|e| e.1),
                 });
@@ -903,8 +944,11 @@ pub fn calibration_text(rows: &[StudyRow], method: &str) -> String {
             span(&|r| r.oracle_track_ratio),
             span(&|r| r.oracle_local_ratio),
         );
+        let worst_y = rs.iter().min_by(|a, b| a.young_contained.total_cmp(&b.young_contained)).unwrap();
         out.push_str(&format!(
             "  {sc}: contained >= {:.2}% ({} s) {}, bound/err <= {:.1} ({} s) {}\n    \
+             young tracks (first {YOUNG_S} s of a run, every {YOUNG_EVERY} s, {} samples at {} s): \
+             contained >= {:.2}% ({} s) {}\n    \
              in hindsight, holding 99% over the horizons: one bound for all {:.1}-{:.1}x, \
              each track's median error {:.1}-{:.1}x, its median within {ORACLE_WINDOW_S} s {:.1}-{:.1}x\n",
             100.0 * worst_c.contained,
@@ -913,6 +957,11 @@ pub fn calibration_text(rows: &[StudyRow], method: &str) -> String {
             worst_r.bound_ratio,
             worst_r.horizon_s,
             ok(worst_r.bound_ratio <= 3.0),
+            worst_y.young_n,
+            worst_y.horizon_s,
+            100.0 * worst_y.young_contained,
+            worst_y.horizon_s,
+            ok(worst_y.young_contained >= 0.99),
             u.0,
             u.1,
             t.0,

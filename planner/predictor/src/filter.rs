@@ -232,6 +232,15 @@ impl TrackFilter {
         p.p00.max(0.0).sqrt()
     }
 
+    /// The filter's own standard deviation of the attitude, per axis (small rotation), `tau`
+    /// seconds after the last update (its covariance propagated with the constant-rate
+    /// model), rad.
+    pub fn att_std(&self, cfg: &FilterConfig, tau: f64) -> f64 {
+        let mut p = self.att;
+        p.predict(tau.max(0.0), cfg.ang_accel_psd);
+        p.p00.max(0.0).sqrt()
+    }
+
     /// Forget where the object is (position variance `pos_var` per axis, m²) and open its
     /// velocity to the manoeuvre variance: the next pose sets the position, the next few the
     /// velocity (the poses so far were biased: [`crate::predictor`]'s restarts).
@@ -457,6 +466,26 @@ mod tests {
         let (f, x) = track(&off, false, 0, kick, 11.5);
         let ev = (0..3).map(|i| (f.x[3 + i] - x[3 + i]).powi(2)).sum::<f64>().sqrt();
         assert!(f.maneuvers == 0 && ev > 0.05, "without re-opening: velocity error {ev} m/s");
+    }
+
+    #[test]
+    fn the_attitude_deviation_grows_ahead_and_shrinks_with_poses() {
+        let cfg = FilterConfig::default();
+        let q = [1.0, 0.0, 0.0, 0.0];
+        let mut f = TrackFilter::new(&cfg, 0.0, &[0.0; 3], &q);
+        // At the pose: the pose's noise; ahead: the unknown body rate (2 rad/s) dominates.
+        assert!((f.att_std(&cfg, 0.0) - cfg.att_sigma).abs() < 1e-12);
+        let young = f.att_std(&cfg, 0.5);
+        assert!(young > 0.9 * cfg.init_rate_sigma * 0.5, "{young}");
+        for k in 1..=50 {
+            f.update(&cfg, 0.02 * k as f64, &[0.0; 3], &q);
+        }
+        let a = [0.0, 0.1, 0.5, 1.0, 4.0].map(|tau| f.att_std(&cfg, tau));
+        assert!(a.windows(2).all(|w| w[1] > w[0]), "{a:?}");
+        assert!(a[2] < 0.1 * young, "after 1 s of poses: {} vs {young}", a[2]);
+        // Far ahead the rate's random walk (`ang_accel_psd`) dominates: √(q τ³ / 3).
+        let walk = (cfg.ang_accel_psd * 64.0 / 3.0).sqrt();
+        assert!(a[4] >= walk && a[4] < 1.1 * walk, "{} vs {walk}", a[4]);
     }
 
     #[test]

@@ -3,8 +3,9 @@
 //! young track's bound covers its unknown velocity, a position event's growth is a plausible
 //! change of velocity, a track dropped while its object
 //! was out of view is taken up again with its velocity, and after an impulse the online
-//! calibration starts again (for any sensor, not a setting). Each setting is off for the pose
-//! sensor (the defaults), and each setting's test shows what happens without it.
+//! calibration starts again (for any sensor, not a setting). Each setting but the filter's own
+//! deviations in the bound (`track_sigmas`, on for every sensor) is off for the pose sensor
+//! (the defaults), and each setting's test shows what happens without it.
 
 mod common;
 
