@@ -72,9 +72,10 @@ pub struct PredictorConfig {
     pub sensor_origin: [f64; 3],
     /// The published position bound is at least this many of the track filter's own position
     /// deviations at each horizon ([`TrackFilter::pos_std`]: a young track's velocity is
-    /// still uncertain, which the model's bound does not know), and while the track's online
-    /// calibration has not started ([`PredictorConfig::calib_min_obs`]) its attitude bound
-    /// this many of the filter's attitude deviations ([`TrackFilter::att_std`]). 0: off.
+    /// still uncertain, which the model's bound does not know); while the track's online
+    /// calibration has not started ([`PredictorConfig::calib_min_obs`]) the two are added in
+    /// quadrature (separate errors), and its attitude bound is at least this many of the
+    /// filter's attitude deviations ([`TrackFilter::att_std`]). 0: off.
     /// Default [`TRACK_SIGMAS`], for every sensor (without it the pose sensor's forecasts of
     /// tracks in their first second held the truth 41–61 % of the time in three of the four
     /// scenes: `dkrrt predict-eval`'s young-track figures).
@@ -975,7 +976,14 @@ impl DebrisPredictor {
                 for s in 1..=h {
                     let o = k * hb + s - 1;
                     let own = self.cfg.track_sigmas * tr.filter.pos_std(fc, s as f64 * buf.dt);
-                    buf.pos_radius[o] = buf.pos_radius[o].max(own);
+                    // Not yet calibrated: the fitted bound (the model's error on converged
+                    // tracks) and this track's own uncertainty are separate errors, added in
+                    // quadrature; a calibrated bound has seen the track's own errors.
+                    buf.pos_radius[o] = if tr.calib_obs < self.cfg.calib_min_obs {
+                        buf.pos_radius[o].hypot(own)
+                    } else {
+                        buf.pos_radius[o].max(own)
+                    };
                     if tr.calib_obs < self.cfg.calib_min_obs {
                         // Not yet calibrated on its own forecasts: nor is its attitude known
                         // better than the filter knows it (its body rate still uncertain).
