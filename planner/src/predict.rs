@@ -166,8 +166,9 @@ pub fn predictor_config(sc: &Scenario) -> PredictorConfig {
 /// in a row, and a track dropped while its object was hidden taken up again within 5 s.
 /// Far views are noisier: a pixel spans more, and a far object shows few of them, so the
 /// noise is also at least [`DEPTH_POS_SIGMA_PIXELS`] of a pixel's span at the object's range
-/// from `camera`'s optical centre. Each is off for the pose sensor. (The published bound
-/// holds the filter's own deviations for both, `PredictorConfig::track_sigmas`.)
+/// from `camera`'s optical centre. Each is off for the pose sensor. A track is forecast from
+/// its fifth pose (the pose sensor's from its second). (The published bound holds the
+/// filter's own deviations for both, `PredictorConfig::track_sigmas`.)
 pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig) {
     cfg.filter.pos_sigma = cfg.filter.pos_sigma.max(DEPTH_POS_SIGMA_M);
     cfg.filter.att_sigma = cfg.filter.att_sigma.max(DEPTH_ATT_SIGMA_RAD);
@@ -175,6 +176,7 @@ pub fn for_depth(cfg: &mut PredictorConfig, camera: &dkrrt_camera::CameraConfig)
     cfg.event_persist = 2;
     cfg.event_max_dv = DEPTH_EVENT_MAX_DV;
     cfg.pos_sigma_per_m = DEPTH_POS_SIGMA_PER_M;
+    cfg.min_obs_for_forecast = 5;
     cfg.revive_s = 5.0;
     cfg.front_end_margin_m = dkrrt_depthpose::perception::ERROR_MARGIN_M;
     cfg.pos_sigma_per_range = DEPTH_POS_SIGMA_PIXELS * camera.fov_y_rad / camera.height.max(1) as f64;

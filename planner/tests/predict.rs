@@ -338,3 +338,17 @@ fn a_depth_capture_labelling_nothing_is_an_empty_sky_and_one_label_is_not() {
     assert_eq!(feed(&mut core, 150, 0), None, "capture 100 labelled an object");
     assert_eq!(feed(&mut core, 200, 0), Some(0), "capture 150 labelled nothing");
 }
+
+/// Poses from depth frames are heavy-tailed: their tracks are forecast from the fifth pose,
+/// the pose sensor's from the second; both hold the filter's own deviations in the bound.
+#[test]
+fn depth_tracks_wait_for_five_poses_and_pose_tracks_for_two() {
+    let mut sc = scenario("dense", "deep-koopman-online");
+    let poses = dkrrt_planner::predict::predictor_config(&sc);
+    assert_eq!(poses.min_obs_for_forecast, 2);
+    sc.predictor.input = "depth".into();
+    let depth = dkrrt_planner::predict::predictor_config(&sc);
+    assert_eq!(depth.min_obs_for_forecast, 5);
+    assert_eq!(poses.track_sigmas, depth.track_sigmas);
+    assert!(poses.track_sigmas > 3.0);
+}
