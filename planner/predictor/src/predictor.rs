@@ -974,6 +974,9 @@ impl DebrisPredictor {
                     buf.att_radius[o] = buf.att_radius[o].max(last.1);
                 }
             }
+            // Not yet calibrated on its own forecasts (its first poses, or the first after a
+            // restart): its bounds and its published attitude are the filter's (below).
+            let young = self.cfg.track_sigmas > 0.0 && tr.calib_obs < self.cfg.calib_min_obs;
             if self.cfg.track_sigmas > 0.0 {
                 let fc = &self.cfg.filter;
                 for s in 1..=h {
@@ -982,12 +985,9 @@ impl DebrisPredictor {
                     // Not yet calibrated: the fitted bound (the model's error on converged
                     // tracks) and this track's own uncertainty are separate errors, added in
                     // quadrature; a calibrated bound has seen the track's own errors.
-                    buf.pos_radius[o] = if tr.calib_obs < self.cfg.calib_min_obs {
-                        buf.pos_radius[o].hypot(own)
-                    } else {
-                        buf.pos_radius[o].max(own)
-                    };
-                    if tr.calib_obs < self.cfg.calib_min_obs {
+                    buf.pos_radius[o] =
+                        if young { buf.pos_radius[o].hypot(own) } else { buf.pos_radius[o].max(own) };
+                    if young {
                         // Not yet calibrated on its own forecasts: nor is its attitude known
                         // better than the filter knows it (its body rate still uncertain).
                         let own = self.cfg.track_sigmas * tr.filter.att_std(fc, s as f64 * buf.dt);
@@ -1029,7 +1029,6 @@ impl DebrisPredictor {
             // whose deviation its bound holds (the model refined online from its few poses
             // is not yet scored).
             let rows = k * hb..k * hb + h;
-            let young = self.cfg.track_sigmas > 0.0 && tr.calib_obs < self.cfg.calib_min_obs;
             for (s, o) in rows.clone().enumerate() {
                 let x = &buf.states[o * N..(o + 1) * N];
                 buf.full_q[o] = if young {
