@@ -9,7 +9,6 @@
 //!
 //! [`PredictorCore::observe_frame`] and [`PredictorCore::forecast_into`] allocate nothing.
 
-use dkrrt_collision::bounds::surface_sigma;
 use dkrrt_collision::interpolate_pose;
 use dkrrt_config::Scenario;
 use dkrrt_debris::{Observation, PerturbationConfig, RandomSceneParams, Scene, SCENE_NAMES};
@@ -636,8 +635,16 @@ impl PredictorCore {
             for k in 1..=self.steps {
                 // Fractional step of this track's own forecast that falls on the common grid.
                 let s = k as f64 + lag;
+                if s > h as f64 {
+                    // Past this track's own horizon (it lags the newest track): read as the
+                    // planner reads any forecast past its last step.
+                    let (p, q, sigma_m, pos) = self.buf.continued(i, (s - h as f64) * dt, &shape, radius);
+                    let p = [p[0] - b[0], p[1] - b[1], p[2] - b[2]];
+                    tr.steps[k - 1] = ForecastStep { p, q, sigma_m, sigma_pos_m: pos };
+                    continue;
+                }
                 let j = (s.floor() as usize).clamp(1, h - 1);
-                let f = s - j as f64; // > 1 beyond the track's horizon: linear extrapolation
+                let f = s - j as f64;
                 let (a, c) = (self.buf.state(i, j), self.buf.state(i, j + 1));
                 let pa = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
                 let pc = [c[0] - b[0], c[1] - b[1], c[2] - b[2]];
@@ -654,13 +661,7 @@ impl PredictorCore {
                 tr.steps[k - 1] = ForecastStep {
                     p,
                     q,
-                    sigma_m: surface_sigma(
-                        &shape,
-                        radius,
-                        pos,
-                        self.buf.attitude_radius(i, kk),
-                        self.buf.axis_radius(i, kk),
-                    ),
+                    sigma_m: self.buf.published_sigma(i, kk, &shape, radius),
                     sigma_pos_m: pos,
                 };
             }

@@ -352,3 +352,55 @@ fn depth_tracks_wait_for_five_poses_and_pose_tracks_for_two() {
     assert_eq!(poses.track_sigmas, depth.track_sigmas);
     assert!(poses.track_sigmas > 3.0);
 }
+
+#[test]
+fn a_track_that_lags_the_newest_is_read_past_its_own_horizon_as_the_planner_reads_it() {
+    // One object goes unseen for its last 0.6 s: on the common grid (t0 = the newest track's
+    // time) its forecast runs ~6 steps past its own horizon. There its bounds keep growing
+    // (`ForecastBuffer::continued`), not frozen at its horizon's, and they hold the truth.
+    let mut sc = scenario("sparse-slow", "dual-data");
+    sc.debris.dropout = 0.0;
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    feed(&mut side, &mut core, 2400);
+    let hidden = side.world().debris()[0].id;
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let l = lim();
+    for _ in 0..600 {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |f| {
+            let mut g = *f;
+            let kept: Vec<_> =
+                f.items[..f.count as usize].iter().filter(|it| it.id != hidden).copied().collect();
+            g.items[..kept.len()].copy_from_slice(&kept);
+            g.count = kept.len() as u32;
+            core.observe_frame(&g, &l);
+            Ok(())
+        })
+        .unwrap();
+    }
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let n = core.forecast_into(&mut msg);
+    let tr = msg.tracks[..n].iter().find(|t| t.id == hidden).expect("the hidden track is still forecast");
+    let (s, last) = (&tr.steps, msg.steps as usize - 1);
+    // Past its own horizon (the last ~6 steps) each bound keeps growing.
+    for k in last - 4..=last {
+        assert!(s[k].sigma_pos_m > s[k - 1].sigma_pos_m, "step {k}: {:?} {:?}", s[k - 1], s[k]);
+        assert!(s[k].sigma_m > s[k - 1].sigma_m, "step {k}");
+    }
+    // The truth at the last step is within the position bound.
+    let t_end = msg.t0_ns as f64 * 1e-9 + msg.steps as f64 * msg.dt_s;
+    let ticks = ((t_end - side.world().time()) * 1000.0).round() as usize;
+    for _ in 0..ticks {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |_| Ok(())).unwrap();
+    }
+    let b = sc.debris.base_lvlh;
+    let d = side.world().debris().iter().find(|d| d.id == hidden).unwrap();
+    let p = s[last].p;
+    let err = ((p[0] + b[0] - d.state.p.x).powi(2)
+        + (p[1] + b[1] - d.state.p.y).powi(2)
+        + (p[2] + b[2] - d.state.p.z).powi(2))
+    .sqrt();
+    assert!(err <= s[last].sigma_pos_m, "error {err} m, bound {} m", s[last].sigma_pos_m);
+}

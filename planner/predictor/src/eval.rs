@@ -115,6 +115,10 @@ pub struct StudyRow {
     /// horizon and the share of them contained as [`StudyRow::contained`] counts it.
     pub young_n: usize,
     pub young_contained: f64,
+    /// Past the forecast's last step, read as the planner reads it ([`PastHorizon`]): on the
+    /// last horizon's row of each scene and method.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub past: Option<PastHorizon>,
     /// Rows of a [`View`] (e.g. the depth camera): the median error of the observations
     /// themselves against the truth at their measurement time, position, m…
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -122,6 +126,25 @@ pub struct StudyRow {
     /// … and body z axis (a rod's axis, a panel's normal; sign-free), rad.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub obs_axis_err_rad: Option<f64>,
+}
+
+/// How far past a forecast's last step the planner reads it, s: [`PAST_S`]`[i]` after it.
+/// The planner checks its plans 5 s ahead (its default lookahead) against 4 s forecasts.
+pub const PAST_S: [f64; 2] = [0.5, 1.0];
+
+/// The forecasts read past their last step as the planner reads them: the last interval's
+/// motion continued ([`dkrrt_collision::pose::continue_pose`]), each bound grown at its rate
+/// ([`dkrrt_collision::bounds::growth_rate`]), the object in the shape inflated by the surface
+/// bound and in the bounding ball inflated by the position bound. Per [`PAST_S`] offset: the
+/// share of samples contained (as [`StudyRow::contained`] counts it), the median bound and the
+/// median surface error, m.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PastHorizon {
+    pub after_s: [f64; 2],
+    pub n: usize,
+    pub contained: [f64; 2],
+    pub bound_m: [f64; 2],
+    pub surface_err_m: [f64; 2],
 }
 
 /// Another way to observe the held-out runs (e.g. through a depth camera and its front end):
@@ -416,6 +439,9 @@ pub struct Errors {
     /// `surface_of[j][i]`: whose `surface[j][i]` is: (the recording's index among those
     /// evaluated into these errors, the track's id, the forecast's issue time, s).
     pub surface_of: Vec<Vec<(u32, u32, f64)>>,
+    /// `past[i]`: (bound, surface error) [`PAST_S`]`[i]` past the forecast's last step, read
+    /// as the planner reads it ([`past_sample`]) [m].
+    pub past: [Vec<(f64, f64)>; 2],
     /// Recordings evaluated so far.
     pub runs: u32,
 }
@@ -470,17 +496,34 @@ pub fn surface_sample(
     body: &TrueBody,
     truth: &[f64; N],
 ) -> (f64, f64) {
-    use dkrrt_collision::bounds::{sphere_is_tighter, surface_sigma};
     let x = buf.state(j, k);
     let q = buf.published_attitude(j, k, shape);
     let p = [x[0], x[1], x[2]];
     let pos = buf.pos_radius(j, k);
-    let sigma = surface_sigma(shape, radius, pos, buf.attitude_radius(j, k), buf.axis_radius(j, k));
+    let sigma = buf.published_sigma(j, k, shape, radius);
+    contained_in(shape, radius, &p, &q, sigma, pos, body, truth)
+}
+
+/// `(bound, excess)` of the true body at the true pose `truth` against the predicted `shape`
+/// at `p`, `q` inflated by the surface bound `sigma`, within its bounding ball inflated by
+/// the position bound `pos` (see [`surface_sample`]), m.
+#[allow(clippy::too_many_arguments)]
+fn contained_in(
+    shape: &DebrisShape,
+    radius: f64,
+    p: &[f64; 3],
+    q: &[f64; 4],
+    sigma: f64,
+    pos: f64,
+    body: &TrueBody,
+    truth: &[f64; N],
+) -> (f64, f64) {
+    use dkrrt_collision::bounds::sphere_is_tighter;
     let (pt, qt) = ([truth[0], truth[1], truth[2]], [truth[6], truth[7], truth[8], truth[9]]);
     // The bounding sphere of the published radius, inflated by the position bound.
     let ball = DebrisShape::default();
-    let in_ball = (pos, body.excess(&ball, radius, &p, &q, &pt, &qt));
-    let in_shape = (sigma, body.excess(shape, radius, &p, &q, &pt, &qt));
+    let in_ball = (pos, body.excess(&ball, radius, p, q, &pt, &qt));
+    let in_shape = (sigma, body.excess(shape, radius, p, q, &pt, &qt));
     let (tighter, other) = if sphere_is_tighter(sigma, pos, shape.rotation_lever(radius)) {
         (in_ball, in_shape)
     } else {
@@ -491,6 +534,22 @@ pub fn surface_sample(
     } else {
         tighter
     }
+}
+
+/// [`surface_sample`] `after` s past forecast `j`'s last step (`H ≥ 2`), read as the planner
+/// reads a forecast there ([`ForecastBuffer::continued`]).
+#[allow(clippy::too_many_arguments)]
+pub fn past_sample(
+    buf: &ForecastBuffer,
+    j: usize,
+    after: f64,
+    shape: &DebrisShape,
+    radius: f64,
+    body: &TrueBody,
+    truth: &[f64; N],
+) -> (f64, f64) {
+    let (p, q, sigma, pos) = buf.continued(j, after, shape, radius);
+    contained_in(shape, radius, &p, &q, sigma, pos, body, truth)
 }
 
 /// The young-track evaluation covers the first this many seconds of each held-out run.
@@ -588,6 +647,21 @@ pub fn evaluate_until(
                     out.surface_of[hj].push((run, buf.id(j), buf.t0(j)));
                 }
             }
+            let h = buf.horizon();
+            if h < 2 {
+                continue;
+            }
+            for (pi, &after) in PAST_S.iter().enumerate() {
+                let Some(truth) = rec.truth.at(buf.id(j), buf.t0(j) + h as f64 * dt + after) else {
+                    continue;
+                };
+                if let Some((_, shape, r)) = rec.shapes.iter().find(|s| s.0 == buf.id(j)) {
+                    let (est, er) = published(buf.id(j)).unwrap_or((DebrisShape::default(), *r));
+                    let hull = rec.hulls.iter().find(|h| h.0 == buf.id(j)).map(|h| &h.1[..]);
+                    let body = TrueBody { shape, radius: *r, hull };
+                    out.past[pi].push(past_sample(&buf, j, after, &est, er, &body, &truth));
+                }
+            }
         }
     }
 }
@@ -639,6 +713,18 @@ pub fn oracle_ratio(sf: &[(f64, f64)], of: &[(u32, u32, f64)], window: f64, medi
     }
     norm.sort_by(|a, b| a.total_cmp(b));
     quantile_sorted(&norm, 0.99) * median(&mut size) / median_err
+}
+
+/// [`PastHorizon`] of the samples `past` (per [`PAST_S`] offset).
+pub fn past_horizon(past: &[Vec<(f64, f64)>; 2]) -> PastHorizon {
+    let med = |i: usize, f: fn(&(f64, f64)) -> f64| median(&mut past[i].iter().map(f).collect::<Vec<_>>());
+    PastHorizon {
+        after_s: PAST_S,
+        n: past[0].len().min(past[1].len()),
+        contained: [contained_share(&past[0]), contained_share(&past[1])],
+        bound_m: [med(0, |s| s.0), med(1, |s| s.0)],
+        surface_err_m: [med(0, |s| s.1), med(1, |s| s.1)],
+    }
 }
 
 /// Median (NaN for an empty set; NaN samples sort last).
@@ -770,6 +856,7 @@ pub fn run_study_views(
                     oracle_local_ratio: oracle(ORACLE_WINDOW_S),
                     young_n: ysf.len(),
                     young_contained: contained_share(ysf),
+                    past: (hj + 1 == cfg.horizons.len()).then(|| past_horizon(&errs.past)),
                     obs_pos_err_m: obs_err.map(|e| e.0),
                     obs_axis_err_rad: obs_err.map(|e| e.1),
                 });
@@ -945,6 +1032,22 @@ pub fn calibration_text(rows: &[StudyRow], method: &str) -> String {
             span(&|r| r.oracle_local_ratio),
         );
         let worst_y = rs.iter().min_by(|a, b| a.young_contained.total_cmp(&b.young_contained)).unwrap();
+        let past = rs.iter().find_map(|r| r.past.as_ref()).map_or(String::new(), |p| {
+            format!(
+                "    past the horizon, read as the planner reads it (+{} / +{} s, {} samples): \
+                 contained {:.2}% / {:.2}% {}, median bound {:.3} / {:.3} m, error {:.3} / {:.3} m\n",
+                p.after_s[0],
+                p.after_s[1],
+                p.n,
+                100.0 * p.contained[0],
+                100.0 * p.contained[1],
+                ok(p.contained.iter().all(|&c| c >= 0.99)),
+                p.bound_m[0],
+                p.bound_m[1],
+                p.surface_err_m[0],
+                p.surface_err_m[1],
+            )
+        });
         out.push_str(&format!(
             "  {sc}: contained >= {:.2}% ({} s) {}, bound/err <= {:.1} ({} s) {}\n    \
              young tracks (first {YOUNG_S} s of a run, every {YOUNG_EVERY} s, {} samples at {} s): \
@@ -969,6 +1072,7 @@ pub fn calibration_text(rows: &[StudyRow], method: &str) -> String {
             l.0,
             l.1,
         ));
+        out.push_str(&past);
     }
     out
 }

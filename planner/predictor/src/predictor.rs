@@ -400,6 +400,57 @@ impl ForecastBuffer {
     pub fn attitude_radius(&self, i: usize, k: usize) -> f64 {
         self.full_radius[i * self.h + k - 1]
     }
+    /// The surface bound forecast `i` publishes `k` steps ahead for an object of `shape`
+    /// (bounding radius `radius`): the position bound plus the attitude bound of the shape's
+    /// channel times its lever ([`dkrrt_collision::bounds::surface_sigma`]), m.
+    pub fn published_sigma(&self, i: usize, k: usize, shape: &dkrrt_msg::DebrisShape, radius: f64) -> f64 {
+        dkrrt_collision::bounds::surface_sigma(
+            shape,
+            radius,
+            self.pos_radius(i, k),
+            self.attitude_radius(i, k),
+            self.axis_radius(i, k),
+        )
+    }
+
+    /// Forecast `i` read `after` s past its last step `H` (`H ≥ 2`) as the planner reads a
+    /// forecast there: the motion from step `H − 1` to `H` continued
+    /// ([`dkrrt_collision::pose::continue_pose`]; the attitude at `H` taken as the one of the
+    /// same shape nearest to `H − 1`, [`dkrrt_collision::pose::same_shape_nearest`], as the
+    /// planner takes it), and each bound grown from
+    /// step `H` at its [`dkrrt_collision::bounds::growth_rate`] over the `H` steps since the
+    /// forecast's start and over the last one (the surface bound at least at the position
+    /// bound's rate). Returns (position, attitude, surface bound, position bound) for an object
+    /// of `shape` (bounding radius `radius`).
+    pub fn continued(
+        &self,
+        i: usize,
+        after: f64,
+        shape: &dkrrt_msg::DebrisShape,
+        radius: f64,
+    ) -> ([f64; 3], [f64; 4], f64, f64) {
+        use dkrrt_collision::bounds::growth_rate;
+        use dkrrt_collision::pose::{continue_pose, same_shape_nearest};
+        let (h, dt) = (self.h, self.dt);
+        let (xa, xb) = (self.state(i, h - 1), self.state(i, h));
+        let qa = self.published_attitude(i, h - 1, shape);
+        let qb = same_shape_nearest(shape, &qa, &self.published_attitude(i, h, shape));
+        let (p, q) = continue_pose(
+            &[xa[0], xa[1], xa[2]],
+            &qa,
+            &[xb[0], xb[1], xb[2]],
+            &qb,
+            1.0 + after.max(0.0) / dt,
+        );
+        let span = h as f64 * dt;
+        let (pa, pb) = (self.pos_radius(i, h - 1), self.pos_radius(i, h));
+        let (sa, sb) =
+            (self.published_sigma(i, h - 1, shape, radius), self.published_sigma(i, h, shape, radius));
+        let pos_rate = growth_rate(pb, pa, dt, span);
+        let rate = growth_rate(sb, sa, dt, span).max(pos_rate);
+        (p, q, sb + rate * after.max(0.0), pb + pos_rate * after.max(0.0))
+    }
+
     /// The attitude forecast `i` publishes `k` steps ahead for an object of `shape` (what the
     /// planner reads): a rod's ([`dkrrt_collision::bounds::AttitudeChannel::Axis`]) is the
     /// model's attitude turned onto the precession forecast's axis; any other shape's is

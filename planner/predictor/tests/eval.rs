@@ -56,9 +56,24 @@ fn small_study() {
             assert!(r.young_contained >= 0.95, "{r:?}");
         }
     }
+    // Past the horizon, read as the planner reads it (the last interval's motion continued,
+    // each bound grown at its rate): on each scene's last row only, and the bound holds there
+    // too (the medium study: 100 %).
+    for scene in &cfg.scenes {
+        for (i, &h) in cfg.horizons.iter().enumerate() {
+            let r = row(&rows, scene, "deep-koopman-online", h);
+            assert_eq!(r.past.is_some(), i + 1 == cfg.horizons.len(), "{r:?}");
+            if let Some(p) = &r.past {
+                assert!(p.n >= 20, "{p:?}");
+                assert!(p.contained.iter().all(|&c| c >= 0.97), "{scene}: {p:?}");
+                assert!(p.bound_m[1] >= p.bound_m[0], "the bounds grow past the horizon: {p:?}");
+            }
+        }
+    }
     let cal = dkrrt_predictor::eval::calibration_text(&rows, "deep-koopman-online");
     assert!(cal.contains("tumbling-rods: contained >= "), "{cal}");
     assert!(cal.contains("young tracks (first 1 s of a run"), "{cal}");
+    assert!(cal.contains("past the horizon, read as the planner reads it"), "{cal}");
     // Constant velocity: errors grow with the horizon on the tumbling scenes.
     for scene in ["tumbling-rods", "sparse-slow"] {
         for w in cfg.horizons.windows(2) {
@@ -141,6 +156,7 @@ fn deep_vs_edmd_takes_the_best_fixed_edmd_per_channel() {
         oracle_local_ratio: 2.5,
         young_n: 50,
         young_contained: 1.0,
+        past: None,
         obs_pos_err_m: None,
         obs_axis_err_rad: None,
     };

@@ -21,7 +21,8 @@
 //! (radius + σ_pos) grows and moves (|v| + dσ_pos/dt), used by the checker to space its
 //! samples. Loading a forecast allocates nothing (fixed capacity).
 
-use dkrrt_collision::pose::{quat_mul, slerp_on, SlerpArc};
+use dkrrt_collision::bounds::growth_rate;
+use dkrrt_collision::pose::{quat_mul, same_shape_nearest, slerp_on, SlerpArc};
 use dkrrt_collision::{quat_angle, Obstacle, PosedCapsule};
 use dkrrt_model::NJ;
 use dkrrt_msg::{DebrisForecast, DebrisShape, ShapeKind, FORECAST_STEPS, MAX_DEBRIS};
@@ -67,8 +68,10 @@ struct Track {
     /// `p`, radius `radius + σ_pos` + inflation): `|Δp| + |Δσ_pos|` over the interval's
     /// length. No rotation, no attitude bound: a ball about the centre turns into itself.
     ball_speeds: Vec<f64>,
-    /// Growth rate of the position bound (and of σ) after the last pose, m/s.
+    /// Growth rate of the position bound after the last pose, m/s.
     sigma_rate: f64,
+    /// Growth rate of the surface bound σ after the last pose (at least `sigma_rate`), m/s.
+    surface_rate: f64,
     /// The poses' spacing when uniform (forecasts: their step), s; 0: not uniform.
     grid_dt: f64,
 }
@@ -115,6 +118,7 @@ impl WorldInTime {
                 speeds: Vec::with_capacity(FORECAST_STEPS + 1),
                 ball_speeds: Vec::with_capacity(FORECAST_STEPS + 1),
                 sigma_rate: 0.0,
+                surface_rate: 0.0,
                 grid_dt: 0.0,
             })
             .collect();
@@ -249,8 +253,11 @@ impl WorldInTime {
         speeds.fill(0.0);
         for (i, tr) in self.tracks[..self.n].iter().enumerate() {
             let s = state_at(tr, tm);
-            let r =
-                tr.radius + s.sigma_pos + self.margin + extra + within(tr, &tr.ball_speeds, t0, t1) * half;
+            let r = tr.radius
+                + s.sigma_pos
+                + self.margin
+                + extra
+                + within(tr, &tr.ball_speeds, tr.sigma_rate, t0, t1) * half;
             if !(dist3(&s.p, centre) - r - radius > 0.0) {
                 mask |= 1 << i;
                 speeds[i] = speed_within(tr, t0, t1);
@@ -275,7 +282,7 @@ impl WorldInTime {
     /// attitude bound's growth: at most it.
     pub fn ball_speed_within(&self, i: usize, t0: f64, t1: f64) -> f64 {
         let tr = &self.tracks[i];
-        within(tr, &tr.ball_speeds, t0, t1)
+        within(tr, &tr.ball_speeds, tr.sigma_rate, t0, t1)
     }
 
     /// [`WorldInTime::obstacles_at`] for the tracks in `mask` only (see [`WorldInTime::near`]).
@@ -386,27 +393,14 @@ impl WorldInTime {
     }
 }
 
-/// A forecast's attitudes of a box or a capsule (no offset) taken, step by step, as the
-/// half turn about a body axis (or none) nearest to the step before: the same shape at every
-/// step (a box and a capsule are their own half turns), and the slerp between two steps no
-/// longer sweeps it end over end through half a turn it did not make (a reported flip).
+/// A forecast's attitudes taken, step by step, as the attitude of the same shape nearest to
+/// the step before ([`dkrrt_collision::pose::same_shape_nearest`]: a rod's or a disc's axis
+/// swung from the step before, without a spin the shape does not show; a box's half turn
+/// nearest to it), so the slerp between two steps, and past the last, moves the shape as
+/// little as the steps allow (no reported flip swept end over end, no spin read as a tumble).
 fn same_turn(t: &mut Track) {
-    let kind = ShapeKind::from_u32(t.shape.kind);
-    if !matches!(kind, Some(ShapeKind::Box | ShapeKind::Capsule)) || t.shape.offset != [0.0; 3] {
-        return;
-    }
     for k in 1..t.poses.len() {
-        let prev = t.poses[k - 1].q;
-        let q = t.poses[k].q;
-        let dot = |a: &[f64; 4]| (a[0] * prev[0] + a[1] * prev[1] + a[2] * prev[2] + a[3] * prev[3]).abs();
-        let mut best = (dot(&q), q);
-        for h in [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]] {
-            let c = quat_mul(&q, &h);
-            if dot(&c) > best.0 + 1e-12 {
-                best = (dot(&c), c);
-            }
-        }
-        t.poses[k].q = best.1;
+        t.poses[k].q = same_shape_nearest(&t.shape, &t.poses[k - 1].q, &t.poses[k].q);
     }
 }
 
@@ -441,20 +435,18 @@ fn finish(t: &mut Track) {
         speed = speed.max((dp + da * lever + ds) / dt);
     }
     t.sigma_rate = 0.0;
+    t.surface_rate = 0.0;
     if t.after == After::Extrapolate && n >= 1 {
-        // Past the horizon the track is its bounding sphere, which holds every attitude: it
-        // grows with the position bound alone (an attitude bound times the shape's lever would
-        // count the attitude twice).
+        // Past the horizon each bound keeps growing ([`dkrrt_collision::bounds::growth_rate`];
+        // the forecast's start is one step before its first pose).
         let last = t.poses[n - 1];
-        // σ grew from about 0 at the forecast's t0, one step before the first pose.
         let step = if n >= 2 { t.poses[1].t - t.poses[0].t } else { 1.0 };
-        let mut rate = last.sigma_pos / (last.t - t.poses[0].t + step);
-        if n >= 2 {
-            let prev = t.poses[n - 2];
-            rate = rate.max((last.sigma_pos - prev.sigma_pos) / (last.t - prev.t));
-        }
-        t.sigma_rate = rate.max(0.0);
-        speed += t.sigma_rate;
+        let span = last.t - t.poses[0].t + step;
+        let prev = if n >= 2 { t.poses[n - 2] } else { last };
+        let interval = last.t - prev.t;
+        t.sigma_rate = growth_rate(last.sigma_pos, prev.sigma_pos, interval, span);
+        t.surface_rate = growth_rate(last.sigma, prev.sigma, interval, span).max(t.sigma_rate);
+        speed += t.surface_rate;
     }
     t.speed = speed;
 }
@@ -543,7 +535,7 @@ impl State {
     /// The attitude: [`dkrrt_collision::interpolate_pose`]'s (slerp between the bracketing
     /// steps, `f` clamped to [0, 1]), with the interval's arc computed at load.
     fn q(&self) -> [f64; 4] {
-        slerp_on(&self.qa, &self.qb, &self.arc, self.f.clamp(0.0, 1.0))
+        slerp_on(&self.qa, &self.qb, &self.arc, self.f.max(0.0))
     }
 }
 
@@ -576,12 +568,12 @@ fn interval_of(tr: &Track, t: f64) -> usize {
 }
 
 fn speed_within(tr: &Track, t0: f64, t1: f64) -> f64 {
-    within(tr, &tr.speeds, t0, t1)
+    within(tr, &tr.speeds, tr.surface_rate, t0, t1)
 }
 
 /// The largest of `speeds` (per interval) over the intervals overlapping `[t0, t1]`, with the
 /// extrapolation's σ growth past the last pose (see [`WorldInTime::speed_within`]).
-fn within(tr: &Track, speeds: &[f64], t0: f64, t1: f64) -> f64 {
+fn within(tr: &Track, speeds: &[f64], rate: f64, t0: f64, t1: f64) -> f64 {
     let n = tr.poses.len();
     if n < 2 {
         // No interval: only σ grows (extrapolated), or nothing moves (held).
@@ -594,7 +586,7 @@ fn within(tr: &Track, speeds: &[f64], t0: f64, t1: f64) -> f64 {
     let (ka, kb) = (interval_of(tr, t0), interval_of(tr, t1.max(t0)));
     let mut v = speeds[ka..=kb].iter().fold(0.0f64, |m, &x| m.max(x));
     if tr.after == After::Extrapolate && t1 > tr.poses[n - 1].t {
-        v = v.max(speeds[n - 2] + tr.sigma_rate);
+        v = v.max(speeds[n - 2] + rate);
     }
     v
 }
@@ -623,8 +615,12 @@ fn state_at(tr: &Track, t: f64) -> State {
             After::Hold => hold,
             After::Extrapolate => {
                 let dt = (t - a.t).max(0.0);
-                let g = tr.sigma_rate * dt;
-                State { sigma: a.sigma + g, sigma_pos: a.sigma_pos + g, sphere: dt > 0.0, ..hold }
+                State {
+                    sigma: a.sigma + tr.surface_rate * dt,
+                    sigma_pos: a.sigma_pos + tr.sigma_rate * dt,
+                    sphere: dt > 0.0,
+                    ..hold
+                }
             }
         };
     }
@@ -662,12 +658,16 @@ fn state_at(tr: &Track, t: f64) -> State {
             f: 0.0,
         },
         After::Extrapolate => {
-            let g = tr.sigma_rate * (t - b.t);
+            // The last interval's motion continued: the centre at its velocity, the attitude
+            // turning on at its rate (the slerp's great circle past `b`), each bound growing
+            // at its rate; the obstacle is the shape inflated by σ within the bounding ball
+            // inflated by σ_pos (either holds the object while its bound does).
+            let dt = t - b.t;
             State {
                 p,
-                sigma: b.sigma + g,
-                sigma_pos: b.sigma_pos + g,
-                sphere: true,
+                sigma: b.sigma + tr.surface_rate * dt,
+                sigma_pos: b.sigma_pos + tr.sigma_rate * dt,
+                sphere: false,
                 qa: a.q,
                 qb: b.q,
                 arc: tr.arcs[k],

@@ -70,6 +70,20 @@ pub fn sphere_is_tighter(sigma: f64, sigma_pos: f64, lever: f64) -> bool {
     sigma - sigma_pos >= lever
 }
 
+/// How fast a forecast's bound keeps growing past its last step, m/s: the larger of its mean
+/// rate since the forecast's start (`last` over `span`, the time from the start, where the
+/// bound is about 0, to the last step) and its rate over the last interval (from `prev`,
+/// `interval` before), and never below 0. The planner grows each bound at this rate past the
+/// horizon (`sigma_pos_m` for the bounding ball, `sigma_m` for the shape, at least the
+/// ball's), and `dkrrt predict-eval` checks that reading.
+pub fn growth_rate(last: f64, prev: f64, interval: f64, span: f64) -> f64 {
+    let mut rate = if span > 0.0 { last / span } else { 0.0 };
+    if interval > 0.0 {
+        rate = rate.max((last - prev) / interval);
+    }
+    rate.max(0.0)
+}
+
 /// The smallest `s` such that the true shape (pose `p_true`, `q_true`) lies inside the
 /// predicted one (`p_pred`, `q_pred`) inflated by `s`, m: for a sphere the centre distance,
 /// for a capsule the larger distance of the true axis's end points to the predicted axis
@@ -411,5 +425,74 @@ mod tests {
                 assert!(e <= sig + 1e-9, "{s:?}: excess {e} > sigma {sig}");
             }
         }
+    }
+
+    #[test]
+    fn past_the_horizon_a_bound_grows_at_the_larger_rate() {
+        // Mean rate since the start (0.4 over 4 s) against the last interval's (0.02 per 0.1 s).
+        assert!((growth_rate(0.4, 0.38, 0.1, 4.0) - 0.2).abs() < 1e-12);
+        assert!((growth_rate(0.4, 0.399, 0.1, 4.0) - 0.1).abs() < 1e-12);
+        // A shrinking last interval keeps the mean rate; nothing grows below 0.
+        assert!((growth_rate(0.4, 0.5, 0.1, 4.0) - 0.1).abs() < 1e-12);
+        assert_eq!(growth_rate(0.0, 0.1, 0.1, 4.0), 0.0);
+        assert_eq!(growth_rate(0.3, 0.3, 0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn past_the_horizon_the_pose_goes_on_at_the_last_rate() {
+        use crate::pose::{continue_pose, quat_angle};
+        // Turns about a fixed axis at rates whose steps the slerp reads as nearly parallel
+        // (< 0.063 rad per step) and not: continued 10 steps past `b`, the attitude is the
+        // constant-rate one (the normalised lerp would be 0.01 rad behind at 0.05 rad a step).
+        let axis = [0.0, 0.6, 0.8];
+        let turn = |th: f64| {
+            let (s, c) = ((0.5 * th).sin(), (0.5 * th).cos());
+            [c, s * axis[0], s * axis[1], s * axis[2]]
+        };
+        for step in [1e-7, 0.01, 0.05, 0.3] {
+            let (qa, qb) = (turn(0.7), turn(0.7 + step));
+            let (p, q) = continue_pose(&[0.0, 1.0, 2.0], &qa, &[0.1, 1.0, 2.0], &qb, 11.0);
+            assert!((p[0] - 1.1).abs() < 1e-12 && p[1] == 1.0 && p[2] == 2.0, "{p:?}");
+            let want = turn(0.7 + 11.0 * step);
+            assert!(quat_angle(&q, &want) < 1e-9, "step {step}: {}", quat_angle(&q, &want));
+            // -b is the same attitude: the shorter arc is continued.
+            let (_, q2) = continue_pose(&[0.0; 3], &qa, &[0.0; 3], &qb.map(|x| -x), 11.0);
+            assert!(quat_angle(&q2, &want) < 1e-9, "step {step}");
+        }
+    }
+
+    #[test]
+    fn a_rods_step_is_its_axis_swung_without_the_spin() {
+        use crate::pose::{axis_swing, quat_angle, quat_mul, quat_rotate, same_shape_nearest};
+        let q_of = |axis: [f64; 3], th: f64| {
+            let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+            let (s, c) = ((0.5 * th).sin() / n, (0.5 * th).cos());
+            [c, s * axis[0], s * axis[1], s * axis[2]]
+        };
+        let z = [0.0, 0.0, 1.0];
+        let prev = q_of([0.3, -0.5, 0.8], 1.1);
+        // The next step: the axis tilted by 0.1 rad, with 2.5 rad of spin about it, and flipped
+        // end over end (the same rod).
+        let za = quat_rotate(&prev, &z);
+        let tilt = q_of([za[1], -za[0], 0.0], 0.1);
+        let spun = quat_mul(&quat_mul(&tilt, &prev), &q_of(z, 2.5));
+        let q = quat_mul(&spun, &q_of([1.0, 0.0, 0.0], std::f64::consts::PI));
+        let s = axis_swing(&prev, &q);
+        let (zs, zq) = (quat_rotate(&s, &z), quat_rotate(&q, &z));
+        // The same line as the step's axis, reached by the 0.1 rad tilt alone.
+        assert!((zs[0] * zq[0] + zs[1] * zq[1] + zs[2] * zq[2]).abs() > 1.0 - 1e-12);
+        assert!((quat_angle(&prev, &s) - 0.1).abs() < 1e-9, "{}", quat_angle(&prev, &s));
+        let rod = shape(ShapeKind::Capsule, [0.6, 0.05, 0.0], [0.0; 3]);
+        assert_eq!(same_shape_nearest(&rod, &prev, &q), s);
+        // A box keeps its spin (its shape shows it), taken modulo its half turns: 2.5 rad is
+        // π − 0.64 rad, so the nearest is 0.64 rad of spin the other way, with the tilt.
+        let b = shape(ShapeKind::Box, [0.6, 0.3, 0.1], [0.0; 3]);
+        let bq = same_shape_nearest(&b, &prev, &q);
+        let a = quat_angle(&prev, &bq);
+        assert!(a > 0.6 && a < 0.7, "{a}");
+        assert!((quat_angle(&bq, &quat_mul(&spun, &q_of(z, std::f64::consts::PI)))) < 1e-9);
+        // A sphere: as given.
+        let ball = shape(ShapeKind::Sphere, [0.3, 0.0, 0.0], [0.0; 3]);
+        assert_eq!(same_shape_nearest(&ball, &prev, &q), q);
     }
 }
