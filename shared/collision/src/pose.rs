@@ -54,8 +54,13 @@ pub fn interpolate_pose(
     qb: &[f64; 4],
     f: f64,
 ) -> ([f64; 3], [f64; 4]) {
-    let p = [pa[0] + f * (pb[0] - pa[0]), pa[1] + f * (pb[1] - pa[1]), pa[2] + f * (pb[2] - pa[2])];
-    (p, slerp(qa, qb, f.clamp(0.0, 1.0)))
+    (lerp3(pa, pb, f), slerp(qa, qb, f.clamp(0.0, 1.0)))
+}
+
+/// `pa + f·(pb − pa)`.
+#[inline]
+fn lerp3(pa: &[f64; 3], pb: &[f64; 3], f: f64) -> [f64; 3] {
+    [pa[0] + f * (pb[0] - pa[0]), pa[1] + f * (pb[1] - pa[1]), pa[2] + f * (pb[2] - pa[2])]
 }
 
 /// The motion from (`pa`, `qa`) to (`pb`, `qb`) continued to the fraction `f ≥ 1` of that
@@ -69,8 +74,7 @@ pub fn continue_pose(
     qb: &[f64; 4],
     f: f64,
 ) -> ([f64; 3], [f64; 4]) {
-    let p = [pa[0] + f * (pb[0] - pa[0]), pa[1] + f * (pb[1] - pa[1]), pa[2] + f * (pb[2] - pa[2])];
-    (p, slerp(qa, qb, f.max(0.0)))
+    (lerp3(pa, pb, f), slerp(qa, qb, f.max(0.0)))
 }
 
 /// `q`, or `q` turned by a half turn about a body axis, whichever is nearest to `prev`: for a
