@@ -7,11 +7,18 @@
 //! * Before the first pose: for a **forecast** track, the motion of the first interval extended
 //!   backwards (the forecast's `t0` is one step before its first pose); a **problem** obstacle
 //!   is at its first pose (held, as its last is after it).
-//! * Past the last pose of a **forecast** track (its horizon): the centre keeps the velocity of
-//!   the last interval, the attitude is no longer predicted (the shape becomes its bounding
-//!   sphere, which holds every attitude), and the position bound keeps growing at the rate of
-//!   the last interval (at least σ_pos,last / horizon per second). Past the last pose of a
-//!   **problem** obstacle: the last pose is held, σ = 0.
+//! * A forecast's steps are first taken, each, as the attitude of the same shape nearest to
+//!   the step before (`dkrrt_collision::pose::same_shape_nearest`: a rod's axis swung without
+//!   the spin it does not show, a box's nearest half turn).
+//! * Past the last pose of a **forecast** track (its horizon): the last interval's motion goes
+//!   on (`dkrrt_collision::pose::continue_pose`: the centre at its velocity, the attitude at
+//!   its rate on the same great circle), and each bound keeps growing at the larger of its
+//!   mean rate since the forecast's start and its last interval's
+//!   (`dkrrt_collision::bounds::growth_rate`; σ at least at σ_pos's rate); the object is in
+//!   the shape inflated by σ and in the bounding ball inflated by σ_pos, as before the
+//!   horizon (`dkrrt predict-eval` measures this reading: `ForecastBuffer::continued`). A
+//!   track of one pose has no motion to go on with: past it, its bounding sphere. Past the
+//!   last pose of a **problem** obstacle: the last pose is held, σ = 0.
 //! * Inflation: σ(t) + the configured margin (+ what the checker's sampling can miss, added by
 //!   the checker).
 //!
@@ -532,8 +539,10 @@ struct State {
 }
 
 impl State {
-    /// The attitude: [`dkrrt_collision::interpolate_pose`]'s (slerp between the bracketing
-    /// steps, `f` clamped to [0, 1]), with the interval's arc computed at load.
+    /// The attitude: [`dkrrt_collision::interpolate_pose`]'s between the bracketing steps
+    /// (slerp, `f` below 0 taken as 0), and past the last step
+    /// [`dkrrt_collision::pose::continue_pose`]'s (`f` > 1), with the interval's arc computed
+    /// at load.
     fn q(&self) -> [f64; 4] {
         slerp_on(&self.qa, &self.qb, &self.arc, self.f.max(0.0))
     }
