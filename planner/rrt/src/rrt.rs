@@ -205,6 +205,8 @@ pub struct Planner {
     /// Wall time from the start of the last `plan` call to its first solution, s.
     pub first_solution_s: Option<f64>,
     pub debug: bool,
+    /// The motion of the edge being checked, refilled in place ([`Planner::edge`]).
+    edge_motion: Box<dkrrt_otg::Trajectory<NJ>>,
 }
 
 impl Planner {
@@ -228,6 +230,7 @@ impl Planner {
             stats: PlanStats::default(),
             first_solution_s: None,
             debug: false,
+            edge_motion: Box::new(dkrrt_otg::Trajectory::hold(&KinState::rest([0.0; NJ]))),
             cfg,
         }
     }
@@ -241,6 +244,13 @@ impl Planner {
     pub(crate) fn motion(&self, from: &KinState<NJ>, q: &[f64; NJ]) -> Option<dkrrt_otg::Trajectory<NJ>> {
         let opts = Options { sync: Sync::Phase, ..Options::default() };
         dkrrt_otg::Trajectory::calculate(from, &KinState::rest(*q), &self.limits, &opts).ok()
+    }
+
+    /// [`Planner::motion`] into `self.edge_motion` (refilled in place: no 18.7 kB value built
+    /// per edge); whether there is one.
+    fn edge_motion_to(&mut self, from: &KinState<NJ>, q: &[f64; NJ]) -> bool {
+        let opts = Options { sync: Sync::Phase, ..Options::default() };
+        self.edge_motion.calculate_into(from, &KinState::rest(*q), &self.limits, &opts).is_ok()
     }
 
     /// A lower bound on the duration of any rest-to-rest motion from `a` to `b` within the
@@ -291,7 +301,10 @@ impl Planner {
             return Edge::Late;
         }
         let st = self.node_state(from);
-        let Some(tr) = self.motion(&st, q) else { return Edge::Blocked };
+        if !self.edge_motion_to(&st, q) {
+            return Edge::Blocked;
+        }
+        let tr = &*self.edge_motion;
         if n.t + w + tr.duration() >= bound {
             return Edge::Late;
         }

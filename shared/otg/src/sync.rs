@@ -111,6 +111,22 @@ impl<const N: usize> Trajectory<N> {
         limits: &Limits<N>,
         options: &Options<N>,
     ) -> Result<Self, OtgError> {
+        let mut tr = Self::hold(current);
+        tr.calculate_into(current, target, limits, options)?;
+        Ok(tr)
+    }
+
+    /// [`Trajectory::calculate`] into `self` (on an error `self` is left as it was): a caller
+    /// computing many motions (a planner's edges) keeps one trajectory and refills it,
+    /// instead of building, zeroing and moving an 18.7 kB value per motion. The same
+    /// trajectory as `calculate`'s.
+    pub fn calculate_into(
+        &mut self,
+        current: &KinState<N>,
+        target: &KinState<N>,
+        limits: &Limits<N>,
+        options: &Options<N>,
+    ) -> Result<(), OtgError> {
         validate_limits(limits)?;
         validate_state(current, &CUR)?;
         validate_state(target, &TGT)?;
@@ -125,6 +141,27 @@ impl<const N: usize> Trajectory<N> {
                     limits.a_max[j],
                     limits.j_max[j],
                 )?;
+            }
+        }
+        // Phase synchronization, when it applies, is the answer (below, after each joint's
+        // time-optimal profile): tried first, it spares those six solves. They only decide
+        // the answer when one of them fails, and a joint whose minimum duration reaches 1e12 s
+        // makes the phase-synchronized duration reach it too; so a phase-synchronized
+        // trajectory shorter than that is returned as found, anything else goes the whole way.
+        let no_brake = || {
+            (0..N).all(|j| {
+                let (v, a) = (current.v[j], current.a[j]);
+                !options.enabled[j]
+                    || position_brake(v, a, limits.v_max[j], limits.a_max[j], limits.j_max[j]).duration()
+                        == 0.0
+            })
+        };
+        if options.sync == Sync::Phase && no_brake() {
+            if let Some((profiles, finals, t)) = phase_sync(current, target, limits, options) {
+                if t < 1e12 {
+                    self.fill(&profiles, &finals, t);
+                    return Ok(());
+                }
             }
         }
         let mut profiles = [Profile::new(0.0, 0.0, 0.0); N];
@@ -165,8 +202,9 @@ impl<const N: usize> Trajectory<N> {
             finals[j] = [target.p[j], target.v[j], target.a[j]];
         }
         if options.sync == Sync::Phase && brake_t.iter().all(|&b| b == 0.0) {
-            if let Some(tr) = phase_sync(current, target, limits, options) {
-                return Ok(tr);
+            if let Some((profiles, finals, t)) = phase_sync(current, target, limits, options) {
+                self.fill(&profiles, &finals, t);
+                return Ok(());
             }
         }
         if options.sync == Sync::None {
@@ -176,7 +214,8 @@ impl<const N: usize> Trajectory<N> {
                 }
             }
             let t = adjust_duration(t_sync, options);
-            return Ok(Self::from_profiles(&profiles, &finals, t));
+            self.fill(&profiles, &finals, t);
+            return Ok(());
         }
         // Earliest duration >= every minimum, not blocked for any joint.
         let mut t_sync = adjust_duration(t_sync, options);
@@ -216,7 +255,8 @@ impl<const N: usize> Trajectory<N> {
                 verify(&profiles[j], &finals[j], j)?;
             }
         }
-        Ok(Self::from_profiles(&profiles, &finals, t_sync))
+        self.fill(&profiles, &finals, t_sync);
+        Ok(())
     }
 
     /// Time-optimal trajectory that reaches `target_v`/`target_a` (velocity
@@ -334,13 +374,14 @@ pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), O
 /// are the same multiple `λ_j` of one reference joint's (largest move), all
 /// joints follow the reference profile scaled by `λ_j` — a straight line in
 /// joint space. The reference is solved under the tightest scaled limits
-/// `min_j limit_j/|λ_j|`. `None` when the states are not collinear.
+/// `min_j limit_j/|λ_j|`. Returns the joints' profiles, their final states and the
+/// duration ([`Trajectory::fill`]'s input); `None` when the states are not collinear.
 fn phase_sync<const N: usize>(
     current: &KinState<N>,
     target: &KinState<N>,
     limits: &Limits<N>,
     options: &Options<N>,
-) -> Option<Trajectory<N>> {
+) -> Option<([Profile; N], [[f64; 3]; N], f64)> {
     let k = (0..N)
         .filter(|&j| options.enabled[j])
         .max_by(|&a, &b| (target.p[a] - current.p[a]).abs().total_cmp(&(target.p[b] - current.p[b]).abs()))?;
@@ -406,5 +447,5 @@ fn phase_sync<const N: usize>(
         verify(&pr, &finals[j], j).ok()?;
         profiles[j] = pr;
     }
-    Some(Trajectory::from_profiles(&profiles, &finals, main.duration().max(t)))
+    Some((profiles, finals, main.duration().max(t)))
 }

@@ -92,6 +92,16 @@ impl<const N: usize> Trajectory<N> {
             seg: [[Segment::ZERO; MAX_SEGMENTS]; N],
             end: [[0.0; 3]; N],
         };
+        tr.fill(profiles, finals, duration);
+        tr
+    }
+
+    /// [`Trajectory::from_profiles`] written into `self`: only the segments in use are
+    /// written (those past `n_seg` are never read), so refilling a trajectory costs what it
+    /// holds, not its capacity (18.7 kB for six joints).
+    pub(crate) fn fill(&mut self, profiles: &[Profile; N], finals: &[[f64; 3]; N], duration: f64) {
+        let tr = self;
+        tr.duration = duration;
         for j in 0..N {
             let pr = &profiles[j];
             let (mut p, mut v, mut a) = (pr.p0, pr.v0, pr.a0);
@@ -118,7 +128,6 @@ impl<const N: usize> Trajectory<N> {
             }
             tr.n_seg[j] = k;
         }
-        tr
     }
 
     /// Total duration in seconds.

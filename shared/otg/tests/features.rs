@@ -258,3 +258,102 @@ fn speed_peaks_bound_and_meet_the_sampled_speeds() {
     assert!((dkrrt_otg::speed_peak(1.0, 0.0, -6.0, 1.0) - 2.0).abs() < 1e-12);
     assert_eq!(dkrrt_otg::speed_peak(-0.3, 0.0, 0.0, 5.0), 0.3);
 }
+
+/// `calculate_into` refills one trajectory in place (only the segments in use are written):
+/// over random problems of every kind (rest-to-rest, moving starts that need a brake, moving
+/// targets, each synchronization, a disabled joint), refilling the same trajectory after
+/// longer and shorter motions gives `calculate`'s trajectory exactly, and an error leaves the
+/// trajectory as it was.
+#[test]
+fn calculate_into_refills_in_place_as_calculate_builds() {
+    let lim = lim7();
+    let mut rng = SmallRng::seed_from_u64(7);
+    let mut reused = Trajectory::hold(&KinState::rest([0.0; 7]));
+    let (mut phase, mut braked) = (0, 0);
+    for i in 0..3000 {
+        let mut s = KinState::rest([0.0; 7]);
+        let mut t = KinState::rest([0.0; 7]);
+        for j in 0..7 {
+            s.p[j] = rng.random_range(-2.0..2.0);
+            t.p[j] = rng.random_range(-2.0..2.0);
+            if i % 3 == 1 {
+                // Moving, sometimes beyond the limits (a brake first).
+                s.v[j] = rng.random_range(-1.5..1.5) * lim.v_max[j];
+                s.a[j] = rng.random_range(-1.2..1.2) * lim.a_max[j];
+            }
+            if i % 5 == 2 {
+                t.v[j] = rng.random_range(-0.5..0.5) * lim.v_max[j];
+            }
+        }
+        if i % 4 == 3 {
+            // Collinear: a straight line in joint space (phase synchronization applies).
+            let d: [f64; 7] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            t = KinState::rest(std::array::from_fn(|j| s.p[j] + d[j]));
+        }
+        let mut o = Options { sync: [Sync::Phase, Sync::Time, Sync::None][i % 3], ..Options::default() };
+        if i % 7 == 0 {
+            o.enabled[i % 7] = false;
+        }
+        let fresh = Trajectory::calculate(&s, &t, &lim, &o);
+        let before = reused;
+        let r = reused.calculate_into(&s, &t, &lim, &o);
+        match fresh {
+            Ok(f) => {
+                assert!(r.is_ok(), "case {i}: {r:?}");
+                assert_eq!(f.duration().to_bits(), reused.duration().to_bits(), "case {i}");
+                for j in 0..7 {
+                    assert_eq!(f.joint_segments(j), reused.joint_segments(j), "case {i} joint {j}");
+                }
+                for k in 0..=20 {
+                    let tt = f.duration() * k as f64 / 20.0;
+                    let (a, b) = (f.at(tt), reused.at(tt));
+                    assert!(a.p == b.p && a.v == b.v && a.a == b.a, "case {i} at {tt}");
+                }
+                phase += usize::from(o.sync == Sync::Phase && i % 4 == 3);
+                braked += usize::from(s.v.iter().zip(&lim.v_max).any(|(v, m)| v.abs() > *m));
+            }
+            Err(e) => {
+                assert_eq!(r, Err(e), "case {i}");
+                assert_eq!(before.duration().to_bits(), reused.duration().to_bits(), "case {i}");
+                for j in 0..7 {
+                    assert_eq!(
+                        before.joint_segments(j),
+                        reused.joint_segments(j),
+                        "case {i}: left as it was"
+                    );
+                }
+            }
+        }
+    }
+    assert!(phase > 100 && braked > 100, "phase {phase}, braked {braked}");
+}
+
+/// Phase synchronization is answered before each joint's own time-optimal profile is solved
+/// (it does not need them): the answer is still never faster than the slowest joint's own
+/// time-optimal motion, and a motion that would take ≥ 1e12 s is still refused.
+#[test]
+fn phase_sync_answered_first_is_no_faster_than_any_joint_and_refuses_endless_motions() {
+    let lim = lim7();
+    let mut rng = SmallRng::seed_from_u64(11);
+    let phase = Options { sync: Sync::Phase, ..Options::default() };
+    let none = Options { sync: Sync::None, ..Options::default() };
+    for _ in 0..2000 {
+        let s = KinState::rest(std::array::from_fn(|_| rng.random_range(-2.0..2.0)));
+        let t = KinState::rest(std::array::from_fn(|j| s.p[j] + rng.random_range(-1.5..1.5)));
+        let p = Trajectory::calculate(&s, &t, &lim, &phase).unwrap();
+        let own = Trajectory::calculate(&s, &t, &lim, &none).unwrap();
+        assert!(p.duration() >= own.duration() * (1.0 - 1e-12), "{} < {}", p.duration(), own.duration());
+        check_traj(&p, &s, &t, &lim, true, 200, false).unwrap();
+    }
+    // 2000 rad at 1e-9 rad/s: 2e12 s, refused as before (the same error, phase or time sync).
+    let mut slow = lim;
+    slow.v_max[2] = 1e-9;
+    let s = KinState::rest([0.0; 7]);
+    let t = KinState::rest([1.0, 0.5, 2000.0, 0.0, 0.0, 0.0, 0.0]);
+    for o in [phase, Options::default()] {
+        match Trajectory::calculate(&s, &t, &slow, &o) {
+            Err(OtgError::DurationTooLong { joint, duration }) => assert!(joint == 2 && duration >= 1e12),
+            other => panic!("{other:?}"),
+        }
+    }
+}
