@@ -603,9 +603,22 @@ pub fn solve(
     sol.iterations = iterations;
     if !solved {
         sol.first_solution_configs = None;
+        // Where resting at the start stops being clear, if it does: every plan must be gone
+        // by then (an obstacle sweeping through the start leaves that little time).
+        let t_end = prep.planner.cfg.lookahead_s;
+        let Prepared { planner, world, .. } = &mut prep;
+        let rest = planner.checker.check(world, 0.0, t_end, t_end, false, |_| p.start);
         sol.why = Some(format!(
-            "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees){}",
+            "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees){}{}",
             if connect { "RRT-Connect, then " } else { "" },
+            if rest.ok {
+                String::new()
+            } else {
+                format!(
+                    "; resting at the start is not clear from t = {:.3} s on (every plan must leave it before)",
+                    rest.t_fail
+                )
+            },
             if capped > 0 {
                 format!(
                     "; {capped} motion checks needed more than the {} samples a check takes (motions too slow \

@@ -496,6 +496,28 @@ fn a_checker_measures_all_64_tracks_when_all_are_near() {
 }
 
 #[test]
+fn an_unsolved_problem_says_when_resting_at_the_start_stops_being_clear() {
+    // A 3 m ball sweeps through the arm's base (x from 12 m at t = 0 to 0 at 0.4 s, then to
+    // −12 m at 0.8 s): the start is clear at t = 0 and the goal after the last pose, but no
+    // arm can get out of the ball's way, and resting at the start is hit from about 0.2 s on.
+    let mut p = problem(START, GOAL, [12.0, 0.0, 0.0], 3.0);
+    let q = [1.0, 0.0, 0.0, 0.0];
+    p.obstacles[0].poses.push(ProblemPose { t: 0.4, p: [0.0, 0.0, 0.0], q });
+    p.obstacles[0].poses.push(ProblemPose { t: 0.8, p: [-12.0, 0.0, 0.0], q });
+    let sol = solve_default(&p);
+    assert!(!sol.solved);
+    let why = sol.why.expect("a reason");
+    let t: f64 = why
+        .split("resting at the start is not clear from t = ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("{why}"));
+    // The ball's surface reaches the base at 0.3 s; the arm reaches out ~1 m towards it.
+    assert!(t > 0.1 && t < 0.3, "{why}");
+}
+
+#[test]
 fn a_problem_obstacle_is_at_its_first_pose_before_that_pose_time() {
     // A sphere on link 4 of the arm at the start, its first pose at t = 2 s, gone far away by
     // 4 s: the arm starts inside it (held at its first pose before 2 s), so the problem is
