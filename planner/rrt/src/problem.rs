@@ -608,10 +608,12 @@ pub fn solve(
         let t_end = prep.planner.cfg.lookahead_s;
         let Prepared { planner, world, .. } = &mut prep;
         let rest = planner.checker.check(world, 0.0, t_end, t_end, false, |_| p.start);
+        // A check that ran out of samples found nothing: it says nothing.
+        let rest_hit = !rest.ok && planner.checker.capped == capped;
         sol.why = Some(format!(
             "no collision-free motion to the goal found in {plan_time_s:.3} s ({}{rounds} space-time trees){}{}",
             if connect { "RRT-Connect, then " } else { "" },
-            if rest.ok {
+            if !rest_hit {
                 String::new()
             } else {
                 format!(

@@ -292,7 +292,7 @@ fn calculate_into_refills_in_place_as_calculate_builds() {
         }
         let mut o = Options { sync: [Sync::Phase, Sync::Time, Sync::None][i % 3], ..Options::default() };
         if i % 7 == 0 {
-            o.enabled[i % 7] = false;
+            o.enabled[(i / 7) % 7] = false;
         }
         let fresh = Trajectory::calculate(&s, &t, &lim, &o);
         let before = reused;
