@@ -117,6 +117,8 @@ struct Cands {
     len: [u8; MAX_CAND],
     ph: [[f64; 7]; MAX_CAND],
     sign: [[i8; 7]; MAX_CAND],
+    /// Also try each family's touching roots ([`Problem::family_poly`]).
+    touching: bool,
 }
 
 impl Cands {
@@ -127,6 +129,7 @@ impl Cands {
             len: [0; MAX_CAND],
             ph: [[0.0; 7]; MAX_CAND],
             sign: [[0; 7]; MAX_CAND],
+            touching: false,
         }
     }
 
@@ -199,7 +202,7 @@ impl Problem {
         }
         if !((p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
             && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
-            && (a - self.af).abs() <= 1e-11 * (1.0 + self.am))
+            && (a - self.af).abs() <= 1e-11 * (1.0 + self.af.abs()))
         {
             return false;
         }
@@ -344,6 +347,18 @@ impl Problem {
         let mut roots = [0.0; MAX_ROOTS];
         let nr = real_roots(poly, lo, hi, &mut roots);
         self.candidates(c, ts, js, s, &roots[..nr]);
+        if c.touching && poly.len() > 1 {
+            // A double root that rounding turned into a complex pair (the residual touches
+            // zero without crossing it: a profile whose two phases end exactly at zero
+            // length) is a root of the derivative: try those; verification keeps only
+            // the profiles that reach the target.
+            let mut d = [0.0f64; 10];
+            for k in 1..poly.len().min(11) {
+                d[k - 1] = poly[k] * k as f64;
+            }
+            let nd = real_roots(&d[..poly.len().min(11) - 1], lo, hi, &mut roots);
+            self.candidates(c, ts, js, s, &roots[..nd]);
+        }
     }
 
     /// Turn parameter values `roots` of a family (durations `T_k(x) / x^s`)
@@ -639,7 +654,26 @@ impl Problem {
 
     /// All step-1 candidates; `None` if there is none (numerical failure).
     pub fn solve(&self) -> Option<Step1> {
+        // Families' roots first; only when none gives a profile, their touching roots too
+        // (a target reached exactly at the end of a single jerk phase, e.g. a joint braking
+        // to rest where its current brake ends: 1 of 6 such joints in a planner's edge failed).
+        self.solve_with(false).or_else(|| self.solve_with(true))
+    }
+
+    fn solve_with(&self, touching: bool) -> Option<Step1> {
         let mut c = Cands::new();
+        c.touching = touching;
+        if touching {
+            // One jerk phase from a0 to af: no profile is shorter (|Δa| ≤ J·t), so when it
+            // reaches the target it is the answer (the case the touching roots stand for,
+            // found exactly: the families' candidates there end a phase a rounding below 0).
+            for d in [1.0f64, -1.0] {
+                let t = (self.af - self.a0) / (d * self.jm);
+                if t > 0.0 && self.add_raw(&mut c, &[t], &[d * self.jm]) {
+                    break;
+                }
+            }
+        }
         let (v0, a0, vf, af) = (self.v0, self.a0, self.vf, self.af);
         let (vm, am, jm) = (self.vm, self.am, self.jm);
         let dv = vf - v0;
@@ -655,6 +689,9 @@ impl Problem {
             });
         }
         for d in [1.0f64, -1.0] {
+            if c.n > 0 && touching {
+                break;
+            }
             let jd = d * jm;
             let a1 = d * am;
             let a2 = -d * am;
