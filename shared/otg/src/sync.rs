@@ -422,9 +422,13 @@ fn phase_sync<const N: usize>(
         am: ar,
         jm: jr,
     };
+    // On the line the reference moves under the scaled limits; if those need a brake (a
+    // joint whose own jerk would keep it within its velocity limit may not, at the line's
+    // lower jerk), no line stays within every joint's limits: time sync.
     if validate_target_va(k, pb.vf, pb.af, vr, ar, jr).is_err()
         || current.v[k].abs() > vr
         || current.a[k].abs() > ar
+        || position_brake(pb.v0, pb.a0, vr, ar, jr).duration() > 0.0
     {
         return None;
     }

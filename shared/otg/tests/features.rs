@@ -410,3 +410,26 @@ fn a_target_reached_at_the_end_of_a_single_jerk_phase_is_solved() {
     }
     assert_eq!(failed, 0, "of {}", cases.len());
 }
+
+/// A start moving along the line whose joint 0 stays within its velocity limit at its own
+/// jerk, but not at the lower jerk the line allows (joint 1's, scaled): the line would
+/// exceed joint 0's limit (it reached −0.4861 against 0.4812), so time sync answers.
+#[test]
+fn phase_sync_refuses_a_line_that_would_need_a_brake_at_the_lines_jerk() {
+    let s = KinState {
+        p: [-1.5453655809080007, -0.7904923499239588, -3.5351562090508977],
+        v: [-0.4730418317829197, -0.32851337875472786, -0.2795214194696079],
+        a: [-0.3202684619155406, -0.22241685082247956, -0.18924731191016914],
+    };
+    let t = KinState::rest([3.5184024987356564, 2.7261428592798436, -0.5429649346512346]);
+    let l = Limits {
+        v_max: [0.48115406437526065, 2.2483505615303647, 0.30289092299203424],
+        a_max: [7.679801539255901, 13.679475061013278, 10.383844674031835],
+        j_max: [7.11036926268201, 2.7255302197437397, 5.3098167044371],
+    };
+    let o = Options { sync: Sync::Phase, ..Options::default() };
+    let tr = Trajectory::calculate(&s, &t, &l, &o).unwrap();
+    check_traj(&tr, &s, &t, &l, true, 2000, true).unwrap();
+    let tt = Trajectory::calculate(&s, &t, &l, &Options::default()).unwrap();
+    assert_eq!(tr.duration(), tt.duration());
+}

@@ -5,9 +5,9 @@
 mod common;
 
 use common::check_traj;
-use dkrrt_otg::{KinState, Limits, Options, Trajectory};
+use dkrrt_otg::{KinState, Limits, Options, Sync, Trajectory};
 use rand::rngs::SmallRng;
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rsruckig::prelude::*;
 
 #[path = "support/problems.rs"]
@@ -323,4 +323,139 @@ fn regressions_from_millions_run() {
         check_traj(&tr, &s, &t, &l, true, 2000, true).unwrap_or_else(|e| panic!("case {i}: {e}"));
         assert!((tr.duration() - td).abs() <= 1e-8 * td, "case {i}: ours {} oracle {td}", tr.duration());
     }
+}
+
+/// The options against rsruckig's: the minimum duration, the duration rounded to whole
+/// 1 ms cycles, both, no synchronization and disabled joints give rsruckig's duration
+/// wherever both accept the problem, and no problem rsruckig solves is refused.
+#[test]
+fn options_match_the_oracle() {
+    fn run_mode<const N: usize>(mode: usize, seed: u64, n: usize) -> (usize, usize) {
+        let mut rng = SmallRng::seed_from_u64(seed);
+        let mut otg = Ruckig::<N, ThrowErrorHandler>::new(None, 0.001);
+        let (mut checked, mut bad) = (0, 0);
+        for _ in 0..n {
+            let (s, t, l) = draw::<N>(&mut rng);
+            let mut o = Options::default();
+            let mut input = ruckig_input(&s, &t, &l);
+            if mode == 0 || mode == 2 {
+                let md = rng.random_range(0.0..15.0);
+                o.min_duration = Some(md);
+                input.minimum_duration = Some(md);
+            }
+            if mode == 1 || mode == 2 {
+                o.period = Some(0.001);
+                input.duration_discretization = DurationDiscretization::Discrete;
+            }
+            if mode == 3 {
+                o.sync = Sync::None;
+                input.synchronization = Synchronization::None;
+            }
+            if mode == 4 {
+                for j in 0..N {
+                    o.enabled[j] = !rng.random_bool(0.3);
+                }
+                input.enabled = DataArrayOrVec::Stack(o.enabled);
+            }
+            let mut traj = rsruckig::prelude::Trajectory::new(None);
+            let Ok(RuckigResult::Working) = otg.calculate(&input, &mut traj) else { continue };
+            let td = traj.get_duration();
+            checked += 1;
+            match Trajectory::calculate(&s, &t, &l, &o) {
+                Ok(tr) if (tr.duration() - td).abs() <= 1e-8 * td.max(1e-3) => {
+                    if mode <= 2 {
+                        check_traj(&tr, &s, &t, &l, true, 4, true)
+                            .unwrap_or_else(|e| panic!("mode {mode}: {e}"));
+                    }
+                }
+                r => {
+                    bad += 1;
+                    if bad <= 3 {
+                        eprintln!(
+                            "mode {mode}: ours {:?} oracle {td}: {s:?} {t:?} {l:?} {o:?}",
+                            r.map(|x| x.duration())
+                        );
+                    }
+                }
+            }
+        }
+        (checked, bad)
+    }
+    for mode in 0..5 {
+        let (c3, b3) = run_mode::<3>(mode, 300 + mode as u64, 20_000);
+        let (c7, b7) = run_mode::<7>(mode, 700 + mode as u64, 4_000);
+        eprintln!("mode {mode}: 3 DoF {c3} checked, {b3} differ; 7 DoF {c7} checked, {b7} differ");
+        assert!(c3 > 10_000 && c7 > 1_500, "mode {mode}: too few feasible draws");
+        assert_eq!((b3, b7), (0, 0), "mode {mode}");
+    }
+}
+
+/// Phase synchronization against rsruckig's. Where rsruckig's motion is a straight line,
+/// ours is that line in the same time. rsruckig keeps the line only if the limiting joint's
+/// time-synchronized profile, scaled, suits every joint, and otherwise falls back to time
+/// synchronization (not a line). Ours then still returns the line, the fastest one under
+/// every joint's limits: never shorter than rsruckig's, since that motion is time-optimal.
+#[test]
+fn phase_sync_against_the_oracle() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    let mut otg = Ruckig::<3, ThrowErrorHandler>::new(None, 0.001);
+    let (mut same, mut line_longer, mut not_line) = (0usize, 0usize, 0usize);
+    let straightness = |at: &dyn Fn(f64) -> [f64; 3], d: f64, s: &[f64; 3], dp: &[f64; 3]| {
+        (0..=100)
+            .map(|i| {
+                let p = at(d * i as f64 / 100.0);
+                let f = (p[0] - s[0]) / dp[0];
+                (0..3).map(|j| (p[j] - s[j] - f * dp[j]).abs()).fold(0.0, f64::max)
+            })
+            .fold(0.0, f64::max)
+    };
+    for _ in 0..20_000 {
+        let (mut s, mut t, l) = draw::<3>(&mut rng);
+        let dp: [f64; 3] = std::array::from_fn(|j| t.p[j] - s.p[j]);
+        // Collinear start and target velocities and accelerations (zero half the time).
+        let k: [f64; 3] = std::array::from_fn(|i| {
+            if i > 0 && rng.random_bool(0.5) {
+                0.0
+            } else {
+                rng.random_range(-0.1..0.1)
+            }
+        });
+        for j in 0..3 {
+            (s.v[j], s.a[j], t.v[j], t.a[j]) = (k[0] * dp[j], k[1] * dp[j], k[2] * dp[j], 0.0);
+        }
+        let mut input = ruckig_input(&s, &t, &l);
+        input.synchronization = Synchronization::Phase;
+        let mut traj = rsruckig::prelude::Trajectory::new(None);
+        let Ok(RuckigResult::Working) = otg.calculate(&input, &mut traj) else { continue };
+        let td = traj.get_duration();
+        let ruckig_at = |x: f64| {
+            let mut p = DataArrayOrVec::Stack([0.0; 3]);
+            traj.at_time(x, &mut Some(&mut p), &mut None, &mut None, &mut None, &mut None);
+            [p[0], p[1], p[2]]
+        };
+        let o = Options { sync: Sync::Phase, ..Options::default() };
+        let tr = Trajectory::calculate(&s, &t, &l, &o).expect("rsruckig solves it");
+        check_traj(&tr, &s, &t, &l, true, 4, true).unwrap_or_else(|e| panic!("{e}: {s:?} {t:?} {l:?}"));
+        let tol = 1e-7 * (1.0 + dp[0].abs());
+        let ours_off = straightness(&|x| tr.at(x).p, tr.duration(), &s.p, &dp);
+        if ours_off > tol {
+            // No line within the limits from this start (a joint must brake first): time sync.
+            let tt = Trajectory::calculate(&s, &t, &l, &Options::default()).unwrap();
+            assert_eq!(tr.duration(), tt.duration());
+            not_line += 1;
+            continue;
+        }
+        if (tr.duration() - td).abs() <= 1e-8 * td.max(1e-3) {
+            same += 1;
+        } else {
+            assert!(tr.duration() > td, "ours {} shorter than the oracle's optimum {td}", tr.duration());
+            let r_off = straightness(&ruckig_at, td, &s.p, &dp);
+            assert!(r_off > tol, "both lines, ours {} oracle {td}: {s:?} {t:?} {l:?}", tr.duration());
+            line_longer += 1;
+        }
+    }
+    eprintln!(
+        "phase sync: {same} as rsruckig, {line_longer} a line where rsruckig is not, {not_line} not a line"
+    );
+    assert!(same > 10_000 && line_longer > 1_000);
 }
