@@ -332,9 +332,11 @@ impl Prepared {
 
     /// The final check of a timed plan: the sampled check of the message (again at
     /// [`FINE_DELTA_M`] if it fails at the planner's δ), and the clearance every 1 ms to 1 s
-    /// past its end. (passed, smallest clearance beyond the margin [m]).
+    /// past its end or past the obstacles' last pose, whichever is later: the arm rests at the
+    /// goal after the plan's end, and only once the obstacles hold their last poses too does
+    /// nothing change. (passed, smallest clearance beyond the margin [m]).
     pub fn verify(&mut self, out: &Trajectory) -> (bool, f64) {
-        let end = out.duration_s + 1.0;
+        let end = out.duration_s.max(self.horizon) + 1.0;
         let (mut ok, _) = check_message(&mut self.planner, &self.world, out, 0.0, end);
         if !ok && self.planner.cfg.delta_m > FINE_DELTA_M {
             // The sampled check needs δ/2 of clearance at each sample, so a plan that passes

@@ -685,7 +685,7 @@ fn the_final_check_finds_the_grid_minimum_measuring_few_points() {
         let (prep, out, (_, m), measured) = verify_straight(&p);
         let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
         ch.cap = 100.0;
-        let end = out.duration_s + 1.0;
+        let end = out.duration_s.max(prep.horizon) + 1.0;
         let last = (end / 1e-3 + 1e-9).floor() as u64;
         let every = (0..=last)
             .map(|k| {
@@ -731,4 +731,51 @@ fn the_final_check_finds_a_joint_limit_crossed_between_its_milliseconds() {
     tr.seg[0][1].p -= 0.0002;
     let (_, m) = prep.verify(&tr);
     assert!(m > 20.0, "{m}");
+}
+
+#[test]
+fn the_final_check_covers_the_rest_at_the_goal_until_the_obstacles_stop() {
+    // A sphere passes 5–50 cm from the arm resting at its goal, 4 s after the straight
+    // motion ends, and leaves again: the plan's clearance is that pass (the check once ended
+    // 1 s past the motion, and reported the motion's own clearance, metres more).
+    let lim = default_limits();
+    let far = ProblemPose { t: 0.0, p: [30.0, 0.0, 0.0], q: [1.0, 0.0, 0.0, 0.0] };
+    let mut p = problem(START, TURNED, [30.0, 0.0, 0.0], 0.2);
+    let (_, out, (ok, m0), _) = verify_straight(&p);
+    assert!(ok && m0 > 20.0, "{m0}");
+    let end = out.duration_s;
+    let mut caps = [dkrrt_collision::PosedCapsule::default(); NJ];
+    dkrrt_collision::ArmPoser::new(ArmModel::default_arm()).pose(&TURNED, &mut caps);
+    let c = caps[4];
+    // A point beyond link 4's surface, away from the base's axis, where the sphere clears the
+    // resting arm by 5–50 cm.
+    let r = (c.centre[0].powi(2) + c.centre[1].powi(2)).sqrt();
+    let mut ch = Checker::new(ArmModel::default_arm(), &lim.v_max, 0.03);
+    let (prep, pass) = (1..40)
+        .find_map(|k| {
+            let d = c.r + 0.2 + 0.05 * k as f64;
+            p.obstacles[0] = ProblemObstacle {
+                shape: ProblemShape::Sphere { radius: 0.2 },
+                poses: vec![
+                    ProblemPose { t: end + 3.0, ..far },
+                    ProblemPose {
+                        t: end + 4.0,
+                        p: [c.centre[0] * (1.0 + d / r), c.centre[1] * (1.0 + d / r), c.centre[2]],
+                        q: [1.0, 0.0, 0.0, 0.0],
+                    },
+                    ProblemPose { t: end + 5.0, ..far },
+                ],
+            };
+            let prep = verify_straight(&p).0;
+            let pass = ch.clearance_at(&prep.world, &TURNED, end + 4.0, 0.0, f64::NEG_INFINITY);
+            (0.05..0.5).contains(&pass).then_some((prep, pass))
+        })
+        .expect("a place for the pass");
+    assert_eq!(prep.horizon, end + 5.0);
+    let (_, _, (ok, m), _) = verify_straight(&p);
+    assert!(ok && m <= pass + 1e-12, "the final check's clearance {m} against the pass's {pass}");
+    // Closer than the sphere's radius: the plan fails its final check.
+    p.obstacles[0].poses[1].p = c.centre;
+    let (_, _, (ok, m), _) = verify_straight(&p);
+    assert!(!ok && m < 0.0, "{m}");
 }
