@@ -68,14 +68,27 @@ fn a_malformed_problem_is_refused_naming_the_field() {
         (good.replace("[1.0, 0.0, 0.0, 0.0]", "[1.3, 0.0, 0.0, 0.0]"), "obstacles[0].poses[0].q"),
         (good.replace("\"time_limit_s\": 0.2", "\"time_limit_s\": 0"), "time_limit_s"),
         (good.replace("[0.0, -0.5, 1.0, 0.0, 0.5, 0.0]", "[0.0, -0.5, 1.0, 9.0, 0.5, 0.0]"), "start[3]"),
-        (good.replace("\"seed\": 1,", "\"seed\": 1, \"extra\": 2,"), "unknown field"),
-        (good.replace("\"kind\": \"sphere\"", "\"kind\": \"torus\""), "torus"),
+        (good.replace("\"seed\": 1,", "\"seed\": 1, \"extra\": 2,"), "extra: unknown field"),
+        (
+            good.replace("\"kind\": \"sphere\"", "\"kind\": \"torus\""),
+            "obstacles[0].shape.kind: unknown variant `torus`",
+        ),
+        // Values of the wrong type, by the path to them.
+        (good.replace("\"seed\": 1", "\"seed\": -1"), "seed: invalid value"),
+        (good.replace("\"t\": 0.0", "\"t\": \"0\""), "obstacles[0].poses[0].t: invalid type"),
+        (
+            good.replace("\"radius\": 0.3", "\"radius\": 0.3, \"half_length\": 1"),
+            "obstacles[0].shape: unknown field",
+        ),
         // Vectors of the wrong length, with the number they need.
         (
             good.replace("[0.0, -0.5, 1.0, 0.0, 0.5, 0.0]", "[0.0, -0.5, 1.0, 0.0, 0.5, 0.0, 7.0]"),
-            "exactly 6 numbers",
+            "start: invalid length 7, expected exactly 6 numbers",
         ),
-        (good.replace("[5.0, 0.0, 0.0]", "[5.0, 0.0, 0.0, 1.0]"), "exactly 3 numbers"),
+        (
+            good.replace("[5.0, 0.0, 0.0]", "[5.0, 0.0, 0.0, 1.0]"),
+            "obstacles[0].poses[0].p: invalid length 4, expected exactly 3",
+        ),
     ];
     for (i, (text, field)) in cases.iter().enumerate() {
         let f = d.join(format!("b{i}.json"));

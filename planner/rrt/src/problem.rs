@@ -95,7 +95,14 @@ fn finite(field: &str, xs: &[f64]) -> Result<(), ProblemError> {
 impl Problem {
     /// Parses and checks a problem; errors name the field (`obstacles[2].poses[0].q`, ...).
     pub fn from_json(text: &str) -> Result<Problem, ProblemError> {
-        let p: Problem = serde_json::from_str(text).map_err(|e| err("problem", e.to_string()))?;
+        // The path of the value a type error is in (`seed`, `obstacles[1].poses[0].t`); the
+        // whole problem for a syntax error or a missing or unknown field at the top.
+        let p: Problem = serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(text))
+            .map_err(|e| {
+                let path = e.path().to_string();
+                let field = if path == "." { "problem".to_string() } else { path };
+                err(field, e.into_inner().to_string())
+            })?;
         p.validate()?;
         Ok(p)
     }

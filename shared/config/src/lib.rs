@@ -652,9 +652,18 @@ impl Scenario {
 
     /// Parses a scenario; `origin` names it in errors.
     pub fn from_toml_str(s: &str, origin: &str) -> Result<Scenario, ConfigError> {
-        toml::from_str(s).map_err(|e| ConfigError::Parse {
-            origin: dkrrt_io::printable(origin),
+        let origin = || dkrrt_io::printable(origin);
+        let de = toml::Deserializer::parse(s).map_err(|e| ConfigError::Parse {
+            origin: origin(),
             message: e.to_string().trim_end().to_string(),
+        })?;
+        // A value of the wrong type is named by its path (`motion.v_max[0]: …`) before the
+        // parser's line and column.
+        serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            let message = if path == "." { inner } else { format!("{path}: {inner}") };
+            ConfigError::Parse { origin: origin(), message: message.trim_end().to_string() }
         })
     }
 

@@ -57,6 +57,22 @@ fn arrays_of_the_wrong_length_are_refused() {
 }
 
 #[test]
+fn values_of_the_wrong_type_are_refused_by_their_path() {
+    // The parser's own message shows the line; the path names the field before it (the
+    // line alone would not say which `[section]` a key is in).
+    let e = refused("v_max = [0.10, 0.10,", "v_max = [\"fast\", 0.10,");
+    assert!(e.contains("motion.v_max[0]: ") && e.contains("invalid type"), "{e}");
+    let e = refused("stale_ticks = 10", "stale_ticks = -3");
+    assert!(e.contains("tracker.stale_ticks: ") && e.contains("expected u32"), "{e}");
+    let e = refused("mode = \"realtime\"", "mode = \"fast\"");
+    assert!(e.contains("run.mode: ") && e.contains("unknown variant `fast`"), "{e}");
+    let e = refused("heartbeat_hz = 10.0", "heartbeatz = 10.0");
+    assert!(e.contains("run.heartbeatz: ") && e.contains("unknown field"), "{e}");
+    let e = refused("kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0]", "kp = [400.0, 400.0]");
+    assert!(e.contains("tracker.kp: "), "{e}");
+}
+
+#[test]
 fn physically_senseless_values_are_refused_naming_the_field() {
     let kp = "kp = [400.0, 400.0, 400.0, 400.0, 400.0, 400.0]";
     for (from, to, field) in [
