@@ -11,6 +11,15 @@ pub(crate) fn integrate(t: f64, p: f64, v: f64, a: f64, j: f64) -> (f64, f64, f6
     (p + t * (v + t * (a / 2.0 + t * j / 6.0)), v + t * (a + t * j / 2.0), a + t * j)
 }
 
+/// How far a profile's end acceleration may be from its target's: relative to the target
+/// and to the acceleration's swing over the profile (|a0| + Σ|j·t|, what rounding in the
+/// phase durations scales with: a profile swinging to 17 000 rad/s² in 0.08 s ends within
+/// a few 1e-12 of its target, not within 1e-11 of 0).
+#[inline]
+pub(crate) fn accel_tol(af: f64, swing: f64) -> f64 {
+    1e-11 * (1.0 + af.abs()) + 8e-15 * swing
+}
+
 /// A piecewise-constant-jerk motion of one joint.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Profile {
@@ -47,6 +56,11 @@ impl Profile {
 
     pub fn duration(&self) -> f64 {
         self.t[..self.n].iter().sum()
+    }
+
+    /// |a0| + Σ|j·t|: the acceleration's swing over the profile ([`accel_tol`]).
+    pub fn accel_swing(&self) -> f64 {
+        self.a0.abs() + (0..self.n).map(|i| (self.j[i] * self.t[i]).abs()).sum::<f64>()
     }
 
     /// State at the end of the profile.

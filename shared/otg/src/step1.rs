@@ -27,7 +27,7 @@
 #[cfg(test)]
 use crate::poly::Lp;
 use crate::poly::{real_roots, MAX_ROOTS};
-use crate::profile::{integrate, raw_within_limits, Profile};
+use crate::profile::{accel_tol, integrate, raw_within_limits, Profile};
 use crate::velocity;
 
 /// Most candidates collected per joint.
@@ -39,10 +39,11 @@ pub(crate) struct Step1 {
     /// The fastest profile (main phases only, starting at the post-brake state).
     pub best: Profile,
     pub t_min: f64,
-    /// Durations in `(left, right)` for which no profile exists.
-    pub blocked: [(f64, f64); 2],
+    /// Durations in `(left, right)` for which no profile exists: the families' two, and a
+    /// moving joint already at its target's state has `(0, shortest motion)` before them.
+    pub blocked: [(f64, f64); 3],
     /// Profiles of duration exactly `blocked[i].1`.
-    pub right: [Profile; 2],
+    pub right: [Profile; 3],
     pub n_blocked: usize,
 }
 
@@ -149,7 +150,7 @@ impl Problem {
         let (p, v, a) = pr.end_state();
         (p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
             && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
-            && (a - self.af).abs() <= 1e-11 * (1.0 + self.am)
+            && (a - self.af).abs() <= accel_tol(self.af, pr.accel_swing())
     }
 
     /// Build a profile from structural phase durations (clamping rounding
@@ -200,9 +201,10 @@ impl Problem {
                 dur += tc[k];
             }
         }
+        let swing = self.a0.abs() + (0..n).map(|k| (tc[k] * j[k]).abs()).sum::<f64>();
         if !((p - self.pf).abs() <= 4e-10 * (1.0 + self.pf.abs())
             && (v - self.vf).abs() <= 4e-10 * (1.0 + self.vf.abs())
-            && (a - self.af).abs() <= 1e-11 * (1.0 + self.af.abs()))
+            && (a - self.af).abs() <= accel_tol(self.af, swing))
         {
             return false;
         }
@@ -493,6 +495,31 @@ impl Problem {
             let (lo, hi) = win(-d, true);
             self.family5(&mut c, &[h1, r1, h2, r2, z], &[0.0, -jd, 0.0, -jd, 0.0], 1, lo, hi);
         }
+        // Two holds joined by opposite ramps, one hold at an end's acceleration: hold a0,
+        // dJ to M, hold M, −dJ to af (y = M − a0); or dJ from a0 to M, hold M, −dJ to af,
+        // hold af (y = M − af). The holds follow from the duration and the velocity
+        // equations (∝ 1/y). A start at the acceleration limit (after a brake) that must
+        // hold there and then at a level within the limits needs the first (found by
+        // Ruckig-like random problems: no profile at durations between two that had one).
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let ij = 1.0 / jd;
+            let (lo, hi) = win(d, true);
+            let kk = tt - (a0 - af) / jd;
+            let r = dv - a0 * kk - (a0 * a0 - af * af) / (2.0 * jd);
+            let h1 = [-r, kk, -ij];
+            let r1 = [0.0, 0.0, ij];
+            let hm = [r, 0.0, -ij];
+            let r2 = [0.0, (a0 - af) * ij, ij];
+            self.family5(&mut c, &[h1, r1, hm, r2, z], &[0.0, jd, 0.0, -jd, 0.0], 1, lo, hi);
+            let kk = tt - (af - a0) / jd;
+            let r = af * kk - dv + (af * af - a0 * a0) / (2.0 * jd);
+            let r1 = [0.0, (af - a0) * ij, ij];
+            let hm = [-r, 0.0, -ij];
+            let r2 = [0.0, 0.0, ij];
+            let hf = [r, kk, -ij];
+            self.family5(&mut c, &[r1, hm, r2, hf, z], &[jd, 0.0, -jd, 0.0, 0.0], 1, lo, hi);
+        }
         // Four ramps `dJ, −dJ, dJ, −dJ` without holds (a0 → A1 → M → A2 → af).
         // With x = A1 − M, y = A2 − M the duration gives A1 + A2 − M = S and the
         // velocity A1² + A2² − M² = Q, hence x·y = (S² − Q)/2 = P, y = P/x.
@@ -631,6 +658,35 @@ impl Problem {
                 if d > 0.0 { (-2.0 * am * (1.0 + 1e-9), -1e-300) } else { (1e-300, 2.0 * am * (1.0 + 1e-9)) };
             self.family(&mut c, &[h1, r1, h2, r2], &[0.0, -jd, 0.0, -jd], lo, hi);
         }
+        // Two holds joined by opposite ramps: hold a0, dJ to M, hold M, −dJ to af
+        // (y = M − a0), and dJ to M, hold M, −dJ to af, hold af (y = M − af): the sum of
+        // the holds from the duration, their split from the velocity equation.
+        for d in [1.0f64, -1.0] {
+            let jd = d * jm;
+            let y = Lp::mono(1.0, 1);
+            let (lo, hi) =
+                if d > 0.0 { (1e-300, 2.0 * am * (1.0 + 1e-9)) } else { (-2.0 * am * (1.0 + 1e-9), -1e-300) };
+            // a0·h1 + M·hm = Δv − (2M² − a0² − af²)/(2jd), h1 + hm = tt − r1 − r2.
+            let kk = tt - (a0 - af) / jd;
+            let r1 = y.scale(1.0 / jd);
+            let r2 = y.add_const(a0 - af).scale(1.0 / jd);
+            let sum = y.scale(-2.0 / jd).add_const(kk);
+            let m = y.add_const(a0);
+            let vrest = m.mul(&m).scale(-1.0 / jd).add_const(dv + (a0 * a0 + af * af) / (2.0 * jd));
+            let hm = vrest.add(&sum.scale(-a0)).mul(&Lp::mono(1.0, -1));
+            let h1 = sum.add(&hm.scale(-1.0));
+            self.family(&mut c, &[h1, r1, hm, r2], &[0.0, jd, 0.0, -jd], lo, hi);
+            // M·hm + af·hf = Δv − (2M² − a0² − af²)/(2jd), hm + hf = tt − r1 − r2.
+            let kk = tt - (af - a0) / jd;
+            let r1 = y.add_const(af - a0).scale(1.0 / jd);
+            let r2 = y.scale(1.0 / jd);
+            let sum = y.scale(-2.0 / jd).add_const(kk);
+            let m = y.add_const(af);
+            let vrest = m.mul(&m).scale(-1.0 / jd).add_const(dv + (a0 * a0 + af * af) / (2.0 * jd));
+            let hm = vrest.add(&sum.scale(-af)).mul(&Lp::mono(1.0, -1));
+            let hf = sum.add(&hm.scale(-1.0));
+            self.family(&mut c, &[r1, hm, r2, hf], &[jd, 0.0, -jd, 0.0], lo, hi);
+        }
         // Four ramps `dJ, −dJ, dJ, −dJ` without holds (a0 → A1 → M → A2 → af).
         // With x = A1 − M, y = A2 − M the duration gives A1 + A2 − M = S and the
         // velocity A1² + A2² − M² = Q, hence x·y = (S² − Q)/2 = P, y = P/x.
@@ -678,13 +734,17 @@ impl Problem {
         let (vm, am, jm) = (self.vm, self.am, self.jm);
         let dv = vf - v0;
         let dp = self.pf - self.p0;
-        if dp == 0.0 && dv == 0.0 && a0 == 0.0 && af == 0.0 {
+        // Already at the target's state: no motion at all. At rest it can hold for any time; a
+        // joint moving at its target velocity can only leave and come back (below, with the
+        // durations in between blocked).
+        let at_target = dp == 0.0 && dv == 0.0 && a0 == 0.0 && af == 0.0;
+        if at_target && v0 == 0.0 {
             let pr = Profile::new(self.p0, v0, a0);
             return Some(Step1 {
                 best: pr,
                 t_min: 0.0,
-                blocked: [(0.0, 0.0); 2],
-                right: [pr; 2],
+                blocked: [(0.0, 0.0); 3],
+                right: [pr; 3],
                 n_blocked: 0,
             });
         }
@@ -864,13 +924,35 @@ impl Problem {
                 nu += 1;
             }
         }
-        let best = c.get(self, u[0]);
+        // The durations found are the ends of the feasible durations' intervals: the fastest,
+        // then each blocked interval's two ends. An even count means the fastest is an
+        // isolated point (a touching root: the profile exists at that duration alone), so the
+        // durations up to the next are blocked (as Ruckig's block calculation reads two
+        // profiles). A moving joint already at its target's state is such a point at 0 (the
+        // families find it too): it cannot stay, only leave and come back.
+        let first = if at_target {
+            match u[..nu].iter().position(|&i| c.t[i] > 0.0) {
+                Some(f) => f,
+                None => return None,
+            }
+        } else {
+            0
+        };
+        let list = &u[first..nu];
+        let n = list.len();
+        let best = c.get(self, list[0]);
         let mut out =
-            Step1 { best, t_min: c.t[u[0]], blocked: [(0.0, 0.0); 2], right: [best; 2], n_blocked: 0 };
-        let mut k = 1;
-        while k + 1 < nu && out.n_blocked < 2 {
-            out.blocked[out.n_blocked] = (c.t[u[k]], c.t[u[k + 1]]);
-            out.right[out.n_blocked] = c.get(self, u[k + 1]);
+            Step1 { best, t_min: c.t[list[0]], blocked: [(0.0, 0.0); 3], right: [best; 3], n_blocked: 0 };
+        if at_target {
+            out.best = Profile::new(self.p0, v0, a0);
+            out.t_min = 0.0;
+            out.blocked[0] = (0.0, c.t[list[0]]);
+            out.n_blocked = 1;
+        }
+        let mut k = if n % 2 == 0 { 0 } else { 1 };
+        while k + 1 < n && out.n_blocked < 3 {
+            out.blocked[out.n_blocked] = (c.t[list[k]], c.t[list[k + 1]]);
+            out.right[out.n_blocked] = c.get(self, list[k + 1]);
             out.n_blocked += 1;
             k += 2;
         }

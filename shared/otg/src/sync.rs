@@ -2,7 +2,7 @@
 //! joints to a common duration.
 
 use crate::brake::{position_brake, velocity_interface_brake, Brake};
-use crate::profile::{integrate, Profile};
+use crate::profile::{accel_tol, integrate, Profile};
 use crate::step1::{Problem, Step1};
 use crate::{step2, velocity, KinState, Limits, Options, OtgError, Sync, Trajectory};
 
@@ -362,7 +362,7 @@ pub(crate) fn verify(pr: &Profile, fin: &[f64; 3], joint: usize) -> Result<(), O
     let (p, v, a) = pr.end_state();
     let ok = (p - fin[0]).abs() <= REACH_TOL * (1.0 + fin[0].abs())
         && (v - fin[1]).abs() <= REACH_TOL * (1.0 + fin[1].abs())
-        && (a - fin[2]).abs() <= 1e-11 * (1.0 + fin[2].abs());
+        && (a - fin[2]).abs() <= accel_tol(fin[2], pr.accel_swing());
     if ok {
         Ok(())
     } else {
