@@ -12,7 +12,7 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 /// Most distinct IK solutions considered.
 pub const MAX_SOLUTIONS: usize = 8;
 /// Seeded in-limit starting configurations tried after the given seeds.
-pub const RANDOM_SEEDS: usize = 12;
+pub const RANDOM_SEEDS: usize = 64;
 
 /// The target pose as an isometry (`q` = (w, x, y, z), normalised).
 pub fn target(p: &[f64; 3], q: &[f64; 4]) -> Isometry3<f64> {
