@@ -42,7 +42,7 @@ impl Default for IkOptions {
     fn default() -> Self {
         IkOptions {
             max_iters: 100,
-            restarts: 20,
+            restarts: 64,
             pos_tol: 1e-5,
             rot_tol: 1e-5,
             damping: 1e-2,

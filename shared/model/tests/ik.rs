@@ -98,3 +98,35 @@ fn rejects_non_finite_input() {
     let bad = Isometry3::from_parts(Translation3::new(f64::NAN, 0.0, 0.0), UnitQuaternion::identity());
     assert_eq!(m.ik(&bad, &JVec::zeros(), &IkOptions::default()), Err(IkError::NonFinite));
 }
+
+#[test]
+fn reaches_fk_generated_targets_near_the_joint_limits() {
+    // Targets whose configuration has a joint within 5 % of its range from a limit, from
+    // random starts: the attempts that step against the limit stall, and restarts find the
+    // side it is reached from. With 20 restarts (the default until 2026-11-28) 7 of these
+    // 1 000 failed (1 % of all random reachable targets, most of them of this kind); with 64
+    // none.
+    let m = ArmModel::default_arm();
+    let opts = IkOptions::default();
+    let l = *m.limits();
+    let mut r = rng(57);
+    let mut failed = 0;
+    let mut n = 0;
+    while n < 1000 {
+        let q_true = random_q(&m, &mut r);
+        let near = (0..6).any(|i| {
+            let f = (q_true[i] - l.q_min[i]) / (l.q_max[i] - l.q_min[i]);
+            !(0.05..=0.95).contains(&f)
+        });
+        if !near {
+            continue;
+        }
+        n += 1;
+        let target = m.fk(&q_true);
+        match m.ik(&target, &random_q(&m, &mut r), &opts) {
+            Ok(sol) => check_solution(&m, &target, &sol.q, &opts),
+            Err(_) => failed += 1,
+        }
+    }
+    assert!(failed <= 1, "{failed} of {n} reachable targets near a limit not reached");
+}
