@@ -576,6 +576,18 @@ fn main() -> ExitCode {
         } => {
             let scenes =
                 scenes.unwrap_or_else(|| dkrrt_debris::SCENE_NAMES.iter().map(|s| s.to_string()).collect());
+            // A scene file, named relative to here: made absolute (each episode's scenario
+            // would resolve it against its own directory).
+            let scenes: Vec<String> = scenes
+                .into_iter()
+                .map(|s| {
+                    if dkrrt_config::is_scene_path(&s) {
+                        std::fs::canonicalize(&s).map(|p| p.display().to_string()).unwrap_or(s)
+                    } else {
+                        s
+                    }
+                })
+                .collect();
             let episodes = episodes.unwrap_or(match size.as_str() {
                 "small" => 2,
                 "full" => 100,

@@ -152,6 +152,15 @@ fn as_study_base(mut sc: Scenario) -> Scenario {
     sc
 }
 
+/// A scene file a study can build episodes on: an absolute path (the episodes' scenarios
+/// resolve relative paths against their own directory; `dkrrt study` makes a command-line
+/// path absolute) that loads as a scene.
+fn scene_file_ok(s: &str) -> bool {
+    std::path::Path::new(s).is_absolute()
+        && dkrrt_config::is_scene_path(s)
+        && dkrrt_debris::Scene::from_file(s).is_ok()
+}
+
 /// The scenario of one episode (generated: start, goal, debris), with its episode.
 pub fn episode_scenario(
     base: &Scenario,
@@ -369,8 +378,11 @@ pub fn run(
     no_repeats("--scenes", &opts.scenes)?;
     no_repeats("--methods", &opts.methods)?;
     for s in &opts.scenes {
-        if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) {
-            return Err(format!("--scenes: unknown scene {s:?} ({})", dkrrt_debris::SCENE_NAMES.join(", ")));
+        if !dkrrt_debris::SCENE_NAMES.contains(&s.as_str()) && !scene_file_ok(s) {
+            return Err(format!(
+                "--scenes: unknown scene {s:?} ({}, or a scene file: an absolute path ending in .toml)",
+                dkrrt_debris::SCENE_NAMES.join(", ")
+            ));
         }
     }
     for m in &opts.methods {

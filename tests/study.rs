@@ -254,3 +254,58 @@ fn a_fault_filter_matching_nothing_is_refused() {
         "{err}"
     );
 }
+
+#[test]
+fn a_study_runs_threat_episodes_on_a_scene_file() {
+    // A scene of one's own (here fast-crossing at twice its speeds, under another name),
+    // named relative to the working directory: its episodes run like a named scene's, and
+    // the rows name the file.
+    let d = std::env::temp_dir().join(format!("dkrrt-study-file-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let mut scene = dkrrt_debris::Scene::named("fast-crossing").unwrap();
+    scene.name = "fast-crossing-2x".into();
+    for o in &mut scene.debris {
+        o.v = o.v.map(|v| 2.0 * v);
+    }
+    std::fs::write(d.join("mine.toml"), scene.to_toml()).unwrap();
+    let js = d.join("study.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .current_dir(&d)
+        .args([
+            "study",
+            "--scenes",
+            "mine.toml",
+            "--episodes",
+            "2",
+            "--methods",
+            "straight,dk-rrt",
+            "--seed",
+            "3",
+        ])
+        .args(["--threads", "1", "--json"])
+        .arg(&js)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4);
+    let file = std::fs::canonicalize(d.join("mine.toml")).unwrap().display().to_string();
+    for r in rows {
+        assert_eq!(r["scene"], file.as_str(), "{r}");
+        if r["method"] == "dk-rrt" {
+            assert_eq!(r["collision"], false, "{r}");
+        }
+    }
+    // Not a scene: refused, naming what a scene may be.
+    std::fs::write(d.join("junk.toml"), "name = 3").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .current_dir(&d)
+        .args(["study", "--scenes", "junk.toml", "--episodes", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--scenes") && err.contains("scene file"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -290,7 +290,8 @@ impl Default for UdpCfg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EpisodeCfg {
-    /// The named scene the episode builds on.
+    /// The scene the episode builds on: a named scene, or a scene file (relative to the
+    /// scenario's directory).
     pub scene: String,
     pub index: u64,
     pub seed: u64,
@@ -695,8 +696,13 @@ impl Scenario {
     /// The debris scene path, resolved against the scenario's directory, if
     /// `debris.scene` names a file (contains `/` or ends in `.toml`).
     pub fn debris_scene_path(&self) -> Option<PathBuf> {
-        let s = &self.debris.scene;
-        if !(s.contains('/') || s.ends_with(".toml")) {
+        self.scene_file(&self.debris.scene)
+    }
+
+    /// A scene field's file (`debris.scene`, `episode.scene`) resolved against the
+    /// scenario's directory; `None`: a named scene (or none).
+    pub fn scene_file(&self, s: &str) -> Option<PathBuf> {
+        if !is_scene_path(s) {
             return None;
         }
         self.relative_file(s)
@@ -1037,8 +1043,12 @@ impl Scenario {
         c.positive("checks.goal_tolerance_rad", k.goal_tolerance_rad)?;
         c.at_most("checks.goal_tolerance_rad", k.goal_tolerance_rad, 0.5, "rad")?;
         if let Some(e) = &self.episode {
-            if !dkrrt_debris::SCENE_NAMES.contains(&e.scene.as_str()) {
-                return Err(c.fail("episode.scene", format!("{:?}", e.scene), "must be a named scene"));
+            if !dkrrt_debris::SCENE_NAMES.contains(&e.scene.as_str()) && !is_scene_path(&e.scene) {
+                return Err(c.fail(
+                    "episode.scene",
+                    format!("{:?}", e.scene),
+                    "must be a named scene or a scene file (a path with a `/` or ending in .toml)",
+                ));
             }
             if let Some(d) = e.duration_s {
                 if !(d > 0.0 && d <= 3600.0) {
@@ -1247,4 +1257,10 @@ mod tests {
         assert!(e.starts_with(&format!("scenario {file}: debris.scene = ")), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
+}
+
+/// Whether a scene field names a file (a `/` in it, or a `.toml` name) rather than a named
+/// scene.
+pub fn is_scene_path(s: &str) -> bool {
+    s.contains('/') || s.ends_with(".toml")
 }

@@ -91,6 +91,19 @@ fn params(scene: &str) -> (usize, f64, f64) {
     }
 }
 
+/// A scene file's threat parameters: two threats (at most its object count) at speeds
+/// between its slowest and its fastest moving object's (0.15–0.45 m/s when none moves).
+fn params_of(scene: &Scene) -> (usize, f64, f64) {
+    let speeds = scene.debris.iter().map(|d| Vector3::from(d.v).norm()).filter(|v| *v > 1e-6);
+    let (lo, hi) = speeds.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let n = 2.min(scene.debris.len());
+    if hi > 0.0 {
+        (n, lo.max(0.05).min(hi), hi.max(0.05))
+    } else {
+        (n, 0.15, 0.45)
+    }
+}
+
 fn mix(a: u64, b: u64) -> u64 {
     let mut x = a ^ b.wrapping_mul(0x9E37_79B9_7F4A_7C15);
     x ^= x >> 31;
@@ -115,17 +128,35 @@ pub fn straight(
 
 /// Generates episode `cfg` for the arm, motion limits and base position of `sc`.
 pub fn generate(cfg: &EpisodeCfg, sc: &Scenario) -> Result<Episode, String> {
-    if !SCENE_NAMES.contains(&cfg.scene.as_str()) {
-        return Err(format!("episode.scene {:?}: not a named scene ({})", cfg.scene, SCENE_NAMES.join(", ")));
-    }
+    let named = SCENE_NAMES.iter().position(|s| *s == cfg.scene);
+    let (base_scene, scene_key, (n_threats, v_lo, v_hi)) = match (named, sc.scene_file(&cfg.scene)) {
+        (Some(ix), _) => {
+            (Scene::named(&cfg.scene).map_err(|e| e.to_string())?, ix as u64 + 1, params(&cfg.scene))
+        }
+        // A scene file: its episodes are keyed by the scene's name (the same file gives the
+        // same episodes wherever it lies), its threats move at its own objects' speeds.
+        (None, Some(path)) => {
+            let scene = Scene::from_file(&path).map_err(|e| format!("episode.scene {:?}: {e}", cfg.scene))?;
+            let key = scene
+                .name
+                .bytes()
+                .fold(0xCBF2_9CE4_8422_2325u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x100_0000_01B3));
+            let p = params_of(&scene);
+            (scene, key, p)
+        }
+        (None, None) => {
+            return Err(format!(
+                "episode.scene {:?}: not a named scene ({}) nor a scene file",
+                cfg.scene,
+                SCENE_NAMES.join(", ")
+            ))
+        }
+    };
     let model = sc.load_arm().map_err(|e| e.to_string())?;
     let lim = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
     let base = sc.debris.base_lvlh;
-    let scene_ix = SCENE_NAMES.iter().position(|s| *s == cfg.scene).unwrap_or(0) as u64;
-    let mut rng = SmallRng::seed_from_u64(mix(mix(cfg.seed, scene_ix + 1), cfg.index));
-    let base_scene = Scene::named(&cfg.scene).map_err(|e| e.to_string())?;
+    let mut rng = SmallRng::seed_from_u64(mix(mix(cfg.seed, scene_key), cfg.index));
     let poser = ArmPoser::with_offset(model.clone(), base);
-    let (n_threats, v_lo, v_hi) = params(&cfg.scene);
     let center = sc.sim.initial_q;
     let ql = model.limits();
     // Why draws were rejected: [small motion, shooting missed, a threat reaches the arm at rest,

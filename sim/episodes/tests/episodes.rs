@@ -179,3 +179,60 @@ fn a_capped_episode_is_a_short_real_motion_still_hit_and_solvable() {
     let err = generate(&cfg(0, 1.0), &sc).unwrap_err();
     assert!(err.contains("episode.max_straight_s") && err.contains("fastest"), "{err}");
 }
+
+#[test]
+fn a_scene_file_gives_threat_episodes_at_its_own_speeds() {
+    // fast-crossing with every velocity tripled and another name, as a file beside a scenario
+    // that names it relatively: deterministic episodes keyed by the scene's name, threats
+    // aimed at the straight motion at its objects' speeds, solvable by waiting, and mostly
+    // hitting the straight motion.
+    let dir = std::env::temp_dir().join(format!("dkrrt-ep-file-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut scene = dkrrt_debris::Scene::named("fast-crossing").unwrap();
+    scene.name = "fast-crossing-3x".into();
+    for d in &mut scene.debris {
+        d.v = d.v.map(|v| 3.0 * v);
+    }
+    let speeds: Vec<f64> = scene.debris.iter().map(|d| nalgebra::Vector3::from(d.v).norm()).collect();
+    let (lo, hi) = (
+        speeds.iter().cloned().filter(|v| *v > 0.0).fold(f64::INFINITY, f64::min),
+        speeds.iter().cloned().fold(0.0, f64::max),
+    );
+    std::fs::write(dir.join("fast3x.toml"), scene.to_toml()).unwrap();
+    let text = dkrrt_config::DEFAULT_SCENARIO.to_string();
+    std::fs::write(dir.join("scenario.toml"), &text).unwrap();
+    let sc = Scenario::load(dir.join("scenario.toml").to_str().unwrap()).unwrap();
+    let cfg = |index| EpisodeCfg {
+        scene: "fast3x.toml".into(),
+        index,
+        seed: 77,
+        duration_s: None,
+        pose_goal: false,
+        max_straight_s: None,
+    };
+    let lim = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    let mut hit = 0;
+    for i in 0..5 {
+        let e = generate(&cfg(i), &sc).unwrap();
+        let again = generate(&cfg(i), &sc).unwrap();
+        assert_eq!((e.start, e.goal, &e.scene), (again.start, again.goal, &again.scene));
+        assert!(!e.threats.is_empty());
+        for t in &e.threats {
+            assert!(
+                t.speed_mps >= lo * 0.999 && t.speed_mps <= hi * 1.001,
+                "{} outside {lo}–{hi}",
+                t.speed_mps
+            );
+        }
+        let (s, g) = (e.start, e.goal);
+        assert!(min_distance(&e, e.time_limit_s, |_| s) >= REST_CLEARANCE_M - 0.06);
+        assert!(min_distance(&e, e.time_limit_s, |_| g) >= REST_CLEARANCE_M - 0.06);
+        let tr = straight(&e.start, &e.goal, &lim).unwrap();
+        hit += usize::from(min_distance(&e, tr.duration(), |t| tr.at(t).p) <= 0.0);
+    }
+    assert!(hit >= 3, "the straight motion is hit in only {hit} of 5");
+    // A scene file that is not there: refused, naming the field.
+    let e = generate(&EpisodeCfg { scene: "missing.toml".into(), ..cfg(0) }, &sc).unwrap_err();
+    assert!(e.contains("episode.scene") && e.contains("missing.toml"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
