@@ -236,3 +236,67 @@ fn a_scene_file_gives_threat_episodes_at_its_own_speeds() {
     assert!(e.contains("episode.scene") && e.contains("missing.toml"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_smaller_arm_keeps_a_clearance_to_its_size_at_rest() {
+    // A UR5-sized arm (reach 1.29 m against the default arm's 3.35 m): 0.3 m from its rests
+    // was more than a threat crossing its shorter motions could keep (no episode in 500
+    // draws); 9 % of its reach is kept instead. The default arm keeps 0.3 m.
+    let pkgs =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/model/tests/fixtures/pkgs");
+    let urdf = pkgs.join("ur_like_description/urdf/ur_like.urdf");
+    let dir = std::env::temp_dir().join(format!("dkrrt-ep-ur-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = dkrrt_config::DEFAULT_SCENARIO.replacen(
+        "urdf = \"\"",
+        &format!("urdf = \"{}\"\ntip_link = \"tool0\"", urdf.display()),
+        1,
+    );
+    std::fs::write(dir.join("ur.toml"), text).unwrap();
+    let sc = Scenario::load(dir.join("ur.toml").to_str().unwrap()).unwrap();
+    let poser = ArmPoser::new(sc.load_arm().unwrap());
+    let keep = dkrrt_episodes::rest_clearance_m(&poser);
+    assert!((keep - 0.09 * 1.2938).abs() < 1e-3, "{keep}");
+    assert_eq!(dkrrt_episodes::rest_clearance_m(&ArmPoser::new(ArmModel::default_arm())), REST_CLEARANCE_M);
+    let lim = Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
+    for index in 0..2 {
+        let cfg = EpisodeCfg {
+            scene: "sparse-slow".into(),
+            index,
+            seed: 8,
+            duration_s: None,
+            pose_goal: false,
+            max_straight_s: None,
+        };
+        let e = generate(&cfg, &sc).unwrap();
+        assert!(e.rest_clearance_m >= keep);
+        let tr = straight(&e.start, &e.goal, &lim).unwrap();
+        // Posed by the UR-sized arm: the straight motion is hit.
+        let mut w = DebrisWorld::new(&e.scene).unwrap();
+        let mut caps = [PosedCapsule::default(); NJ];
+        let mut hit = false;
+        let mut t = 0.0;
+        while t <= tr.duration() && !hit {
+            poser.pose(&tr.at(t).p, &mut caps);
+            let obs: Vec<Obstacle> = w
+                .debris()
+                .iter()
+                .map(|d| {
+                    let q = d.state.q.quaternion();
+                    Obstacle::from_shape(
+                        d.id,
+                        &d.props.shape,
+                        d.props.bounding_radius,
+                        &[d.state.p.x, d.state.p.y, d.state.p.z],
+                        &[q.w, q.i, q.j, q.k],
+                    )
+                })
+                .collect();
+            hit = proximity(&caps, &obs, 0.0, &mut []).min_distance <= 0.0;
+            w.step(0.01);
+            t += 0.01;
+        }
+        assert!(hit, "episode {index}: the straight motion is not hit");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
