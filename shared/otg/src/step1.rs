@@ -906,8 +906,20 @@ impl Problem {
                 }
             }
         }
+        // A moving joint already at its target with no way back found: it ends at once, and
+        // at no later time.
+        let at_once = || {
+            let pr = Profile::new(self.p0, v0, a0);
+            Step1 {
+                best: pr,
+                t_min: 0.0,
+                blocked: [(0.0, f64::INFINITY), (0.0, 0.0), (0.0, 0.0)],
+                right: [pr; 3],
+                n_blocked: 1,
+            }
+        };
         if c.n == 0 {
-            return None;
+            return at_target.then(at_once);
         }
         // Sort by duration and merge duplicates (the same profile found by two families).
         let mut idx = [0usize; MAX_CAND];
@@ -933,7 +945,7 @@ impl Problem {
         let first = if at_target {
             match u[..nu].iter().position(|&i| c.t[i] > 0.0) {
                 Some(f) => f,
-                None => return None,
+                None => return Some(at_once()),
             }
         } else {
             0
