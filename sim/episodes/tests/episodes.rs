@@ -27,7 +27,11 @@ fn ep(scene: &str, index: u64) -> Episode {
 /// The smallest distance between the debris and the arm posed by `q_of(t)`, every 10 ms to
 /// `t_end` (true shapes).
 fn min_distance(e: &Episode, t_end: f64, q_of: impl Fn(f64) -> [f64; NJ]) -> f64 {
-    let poser = ArmPoser::new(ArmModel::default_arm());
+    min_distance_of(&ArmPoser::new(ArmModel::default_arm()), e, t_end, q_of)
+}
+
+/// [`min_distance`] for the arm `poser` poses.
+fn min_distance_of(poser: &ArmPoser, e: &Episode, t_end: f64, q_of: impl Fn(f64) -> [f64; NJ]) -> f64 {
     let mut w = DebrisWorld::new(&e.scene).unwrap();
     let mut caps = [PosedCapsule::default(); NJ];
     let mut best = f64::INFINITY;
@@ -272,30 +276,7 @@ fn a_smaller_arm_keeps_a_clearance_to_its_size_at_rest() {
         assert!(e.rest_clearance_m >= keep);
         let tr = straight(&e.start, &e.goal, &lim).unwrap();
         // Posed by the UR-sized arm: the straight motion is hit.
-        let mut w = DebrisWorld::new(&e.scene).unwrap();
-        let mut caps = [PosedCapsule::default(); NJ];
-        let mut hit = false;
-        let mut t = 0.0;
-        while t <= tr.duration() && !hit {
-            poser.pose(&tr.at(t).p, &mut caps);
-            let obs: Vec<Obstacle> = w
-                .debris()
-                .iter()
-                .map(|d| {
-                    let q = d.state.q.quaternion();
-                    Obstacle::from_shape(
-                        d.id,
-                        &d.props.shape,
-                        d.props.bounding_radius,
-                        &[d.state.p.x, d.state.p.y, d.state.p.z],
-                        &[q.w, q.i, q.j, q.k],
-                    )
-                })
-                .collect();
-            hit = proximity(&caps, &obs, 0.0, &mut []).min_distance <= 0.0;
-            w.step(0.01);
-            t += 0.01;
-        }
+        let hit = min_distance_of(&poser, &e, tr.duration(), |t| tr.at(t).p) <= 0.0;
         assert!(hit, "episode {index}: the straight motion is not hit");
     }
     let _ = std::fs::remove_dir_all(&dir);
