@@ -309,3 +309,45 @@ fn a_study_runs_threat_episodes_on_a_scene_file() {
     assert!(!out.status.success() && err.contains("--scenes") && err.contains("scene file"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn a_ur_sized_arm_has_threat_episodes_on_debris_of_its_size() {
+    // The shipped UR-like scenario and the two scenes scaled to its size: every episode is
+    // drawn, the planner completes it and the straight motion is hit.
+    let root = env!("CARGO_MANIFEST_DIR");
+    let scenes = format!(
+        "{root}/sim/debris/scenes/small/fast-crossing-small.toml,{root}/sim/debris/scenes/small/sparse-slow-small.toml"
+    );
+    let d = std::env::temp_dir().join(format!("dkrrt-study-ur-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let js = d.join("study.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .args([
+            "study",
+            "--scenario",
+            &format!("{root}/shared/config/scenarios/ur-like.toml"),
+            "--scenes",
+            &scenes,
+        ])
+        .args(["--episodes", "2", "--methods", "straight,dk-rrt", "--seed", "21", "--threads", "1", "--json"])
+        .arg(&js)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    let rows = doc["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 8);
+    for r in rows {
+        assert!(r.get("error").is_none_or(|e| e.is_null()), "{r}");
+        if r["method"] == "dk-rrt" {
+            assert_eq!(
+                (r["completed"].as_bool(), r["collision"].as_bool()),
+                (Some(true), Some(false)),
+                "{r}"
+            );
+        } else {
+            assert_eq!(r["collision"], true, "{r}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
