@@ -4,6 +4,24 @@ use std::process::Command;
 
 use serde_json::Value;
 
+/// Runs `dkrrt study ARGS --json DIR/study.json` in `dir`, which must succeed: its stdout and
+/// the rows of the JSON it wrote.
+fn run_study(dir: &std::path::Path, args: &[&str]) -> (String, Vec<Value>) {
+    let js = dir.join("study.json");
+    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
+        .current_dir(dir)
+        .arg("study")
+        .args(args)
+        .arg("--json")
+        .arg(&js)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    (stdout, doc["rows"].as_array().unwrap().clone())
+}
+
 #[test]
 fn a_small_study_writes_every_row_and_the_planner_beats_the_straight_motion() {
     let d = std::env::temp_dir().join(format!("dkrrt-study-{}", std::process::id()));
@@ -268,28 +286,8 @@ fn a_study_runs_threat_episodes_on_a_scene_file() {
         o.v = o.v.map(|v| 2.0 * v);
     }
     std::fs::write(d.join("mine.toml"), scene.to_toml()).unwrap();
-    let js = d.join("study.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
-        .current_dir(&d)
-        .args([
-            "study",
-            "--scenes",
-            "mine.toml",
-            "--episodes",
-            "2",
-            "--methods",
-            "straight,dk-rrt",
-            "--seed",
-            "3",
-        ])
-        .args(["--threads", "1", "--json"])
-        .arg(&js)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
-    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
-    let rows = doc["rows"].as_array().unwrap();
+    let args = ["--scenes", "mine.toml", "--episodes", "2", "--methods", "straight,dk-rrt", "--seed", "3"];
+    let (_, rows) = run_study(&d, &[&args[..], &["--threads", "1"]].concat());
     assert_eq!(rows.len(), 4);
     let file = std::fs::canonicalize(d.join("mine.toml")).unwrap().display().to_string();
     for r in rows {
@@ -320,22 +318,24 @@ fn a_ur_sized_arm_has_threat_episodes_on_debris_of_its_size() {
     );
     let d = std::env::temp_dir().join(format!("dkrrt-study-ur-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
-    let js = d.join("study.json");
-    let out = Command::new(env!("CARGO_BIN_EXE_dkrrt"))
-        .args([
-            "study",
+    let scenario = format!("{root}/shared/config/scenarios/ur-like.toml");
+    let (_, rows) = run_study(
+        &d,
+        &[
             "--scenario",
-            &format!("{root}/shared/config/scenarios/ur-like.toml"),
+            &scenario,
             "--scenes",
             &scenes,
-        ])
-        .args(["--episodes", "2", "--methods", "straight,dk-rrt", "--seed", "21", "--threads", "1", "--json"])
-        .arg(&js)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let doc: Value = serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
-    let rows = doc["rows"].as_array().unwrap();
+            "--episodes",
+            "2",
+            "--methods",
+            "straight,dk-rrt",
+            "--seed",
+            "21",
+            "--threads",
+            "1",
+        ],
+    );
     assert_eq!(rows.len(), 8);
     for r in rows {
         assert!(r.get("error").is_none_or(|e| e.is_null()), "{r}");
