@@ -73,6 +73,7 @@ fn a_malformed_problem_is_refused_naming_the_field() {
             good.replace("\"kind\": \"sphere\"", "\"kind\": \"torus\""),
             "obstacles[0].shape.kind: unknown variant `torus`",
         ),
+        (format!("{good} {{}}"), "trailing characters"),
         // Values of the wrong type, by the path to them.
         (good.replace("\"seed\": 1", "\"seed\": -1"), "seed: invalid value"),
         (good.replace("\"t\": 0.0", "\"t\": \"0\""), "obstacles[0].poses[0].t: invalid type"),

@@ -97,12 +97,14 @@ impl Problem {
     pub fn from_json(text: &str) -> Result<Problem, ProblemError> {
         // The path of the value a type error is in (`seed`, `obstacles[1].poses[0].t`); the
         // whole problem for a syntax error or a missing or unknown field at the top.
-        let p: Problem = serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(text))
-            .map_err(|e| {
-                let path = e.path().to_string();
-                let field = if path == "." { "problem".to_string() } else { path };
-                err(field, e.into_inner().to_string())
-            })?;
+        let mut de = serde_json::Deserializer::from_str(text);
+        let p: Problem = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+            let path = e.path().to_string();
+            let field = if path == "." { "problem".to_string() } else { path };
+            err(field, e.into_inner().to_string())
+        })?;
+        // Nothing but white space after the problem (as `serde_json::from_str` checks).
+        de.end().map_err(|e| err("problem", e.to_string()))?;
         p.validate()?;
         Ok(p)
     }
