@@ -126,10 +126,44 @@ fn samples(
         &mut traj,
     )
     .map_err(|e| format!("latency: a sample trajectory: {e:?}"))?;
+    Ok((st, cmd, traj, sample_forecast(forecast_tracks(sc))))
+}
+
+/// Bytes of each measured sample the bus moves ([`UsedPart::used_bytes`]), in [`TYPES`] order.
+fn used_sizes(sc: &Scenario) -> Result<[usize; 4], String> {
+    let (st, cmd, traj, fc) = samples(sc)?;
+    Ok([st.used_bytes(), cmd.used_bytes(), traj.used_bytes(), fc.used_bytes()])
+}
+
+/// Tracks in the measured forecast: one per object of the scenario's debris scene, as its
+/// run's forecasts carry (the bus moves only the tracks a forecast uses); all 32 without debris.
+fn forecast_tracks(sc: &Scenario) -> usize {
+    let objects =
+        if sc.has_debris() { sc.load_debris_scene().map_or(MAX_DEBRIS, |s| s.debris.len()) } else { 0 };
+    if objects == 0 {
+        MAX_DEBRIS
+    } else {
+        objects.min(MAX_DEBRIS)
+    }
+}
+
+/// A valid forecast of `tracks` balls, every step of each filled.
+fn sample_forecast(tracks: usize) -> Box<DebrisForecast> {
     let mut fc = Box::new(<DebrisForecast as Zeroed>::zeroed());
-    fc.steps = FORECAST_STEPS as u32;
-    fc.dt_s = 0.1;
-    Ok((st, cmd, traj, fc))
+    (fc.count, fc.steps, fc.dt_s) = (tracks as u32, FORECAST_STEPS as u32, 0.1);
+    for (i, tr) in fc.tracks.iter_mut().enumerate().take(tracks) {
+        (tr.id, tr.bounding_radius, tr.shape) = (i as u32, 0.3, DebrisShape::sphere(0.3));
+        for (k, st) in tr.steps.iter_mut().enumerate() {
+            let p = [3.0 + i as f64, -2.0 + 0.01 * k as f64, 0.5];
+            *st = ForecastStep {
+                p,
+                q: [1.0, 0.0, 0.0, 0.0],
+                sigma_m: 0.01 * (k + 1) as f64,
+                sigma_pos_m: 0.01 * (k + 1) as f64,
+            };
+        }
+    }
+    fc
 }
 
 // ---------------------------------------------------------------- legs
@@ -551,7 +585,7 @@ fn start_load(load: Load, dir: &Path, stop: Arc<AtomicBool>) -> Vec<std::thread:
 
 fn row(name: &str, p: &Percentiles) -> String {
     format!(
-        "  {name:<38} {:>9.1} {:>9.1} {:>9.1} {:>9.1}   ({} samples)",
+        "  {name:<50} {:>9.1} {:>9.1} {:>9.1} {:>9.1}   ({} samples)",
         p.p50, p.p99, p.p999, p.max, p.count
     )
 }
@@ -656,6 +690,14 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
     }
 
     // Figures.
+    let used = used_sizes(&sc)?;
+    let label = |i: usize| {
+        if used[i] == SIZES[i] {
+            format!("{} ({} B)", TYPES[i], SIZES[i])
+        } else {
+            format!("{} ({} B, {} used)", TYPES[i], SIZES[i], used[i])
+        }
+    };
     let base_p = base_h.percentiles_us();
     let tr = &set["tracker"];
     let tr_wake = pct(&tr["wake_latency_us"]);
@@ -679,6 +721,7 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
         ipc.push(json!({
             "type": name,
             "bytes": SIZES[i],
+            "used_bytes": used[i],
             "bus": leg(&echo_rep.bus[i], &ping_bus[i]),
             "raw": leg(&echo_rep.raw[i], &ping_raw[i]),
         }));
@@ -727,11 +770,9 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
     };
     let title = format!("dkrrt latency, {duration_s} s, load {}", load.name());
     figures.extend(dkrrt_figures::percentile_curves(&out.join("latency-wake"), &title, &[wake_panel])?);
-    let ipc_panels: Vec<dkrrt_figures::CurvePanel> = TYPES
-        .iter()
-        .enumerate()
-        .map(|(i, name)| dkrrt_figures::CurvePanel {
-            title: format!("{name} ({} B) one-way", SIZES[i]),
+    let ipc_panels: Vec<dkrrt_figures::CurvePanel> = (0..TYPES.len())
+        .map(|i| dkrrt_figures::CurvePanel {
+            title: format!("{} one-way", label(i)),
             y_label: "latency [us]".into(),
             curves: vec![
                 dkrrt_figures::Curve {
@@ -792,12 +833,12 @@ pub fn run(sc: &Scenario, duration_s: f64, load: Load, out: &Path) -> Result<(Va
     };
     println!("dkrrt latency: {duration_s} s, load {}, period {} us", load.name(), period / 1000);
     println!("  real-time settings: baseline {}; tracker {}", granted(&json!(base_rt)), granted(&tr["rt"]));
-    println!("  {:<38} {:>9} {:>9} {:>9} {:>9}", "latency [us]", "p50", "p99", "p99.9", "max");
+    println!("  {:<50} {:>9} {:>9} {:>9} {:>9}", "latency [us]", "p50", "p99", "p99.9", "max");
     println!("{}", row("baseline thread wake-up", &base_p));
     println!("{}", row("tracker wake-up (process set)", &tr_wake));
     println!("{}", row("state -> command (process set)", &s2c));
     for (i, name) in TYPES.iter().enumerate() {
-        println!("{}", row(&format!("{name} ({} B) one-way, bus", SIZES[i]), &echo_rep.bus[i].one_way_us));
+        println!("{}", row(&format!("{} one-way, bus", label(i)), &echo_rep.bus[i].one_way_us));
         println!("{}", row(&format!("{name} ({} B) one-way, raw", SIZES[i]), &echo_rep.raw[i].one_way_us));
         println!("{}", row(&format!("{name} round trip, bus"), &ping_bus[i].round_trip.percentiles_us()));
         println!("{}", row(&format!("{name} round trip, raw"), &ping_raw[i].round_trip.percentiles_us()));

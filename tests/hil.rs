@@ -241,6 +241,13 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
             assert!(num(&x[path], "/round_trip_us/p50") >= num(&x[path], "/one_way_us/p50") * 0.9, "{x:#}");
         }
         assert!(num(x, "/bytes") >= 96.0);
+        // What the bus moves of the sample: all of a fixed message, the counted part of one
+        // with counts (the forecast: one track per object of the default scene, not 32).
+        let (bytes, used) = (num(x, "/bytes"), num(x, "/used_bytes"));
+        match x["type"].as_str().unwrap() {
+            "RobotState" | "TorqueCommand" => assert_eq!(used, bytes),
+            _ => assert!(used > 0.0 && used < 0.5 * bytes, "{x:#}"),
+        }
     }
     // The granted real-time settings are stated, and the targets judged (met or not).
     assert!(r["rt"]["baseline"]["fifo"].is_boolean() && r["rt"]["tracker"]["fifo"].is_boolean());

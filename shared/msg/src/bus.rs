@@ -20,6 +20,7 @@ use iceoryx2::prelude::{
 };
 
 use crate::types::*;
+use crate::used::UsedPart;
 use crate::validate::{ContractLimits, Validate, ValidationError};
 
 /// An error while setting up or using the bus; says what was attempted.
@@ -40,7 +41,7 @@ fn err_text(what: impl Into<String>, detail: String) -> BusError {
 }
 
 /// A payload type of the contract, with the one service that carries it.
-pub trait Topic: Debug + Copy + ZeroCopySend + Validate + Zeroed + 'static {
+pub trait Topic: Debug + Copy + ZeroCopySend + Validate + Zeroed + UsedPart + 'static {
     /// iceoryx2 service name.
     const SERVICE: &'static str;
     /// Samples a subscriber buffers before the oldest is overwritten.
@@ -340,8 +341,9 @@ pub struct Pub<T: Topic> {
 
 impl<T: Topic> Pub<T> {
     /// Publishes `msg` (header `seq`, `source`, `mono_ns` are filled in here;
-    /// `stamp_ns` and `flags` are the caller's). The payload is copied once
-    /// into the loaned shared-memory sample. iceoryx2 0.10 allocates one small
+    /// `stamp_ns` and `flags` are the caller's). The payload's used part
+    /// ([`UsedPart`]: all of it but for the counted arrays' unused tails) is copied
+    /// once into the loaned shared-memory sample. iceoryx2 0.10 allocates one small
     /// block per loan and frees it on send (counted in the allocation tests).
     pub fn publish(&mut self, msg: &mut T) -> Result<u64, BusError> {
         let h = msg.header_mut();
@@ -350,9 +352,13 @@ impl<T: Topic> Pub<T> {
         h.mono_ns = dkrrt_rt::clock::mono_ns();
         let mut sample = self.port.loan_uninit().map_err(|e| err(format!("loan on {}", T::SERVICE), e))?;
         let slot: &mut MaybeUninit<T> = sample.payload_mut();
-        // SAFETY: `slot` is a properly aligned, writable place for one T; T is Copy.
-        unsafe { core::ptr::copy_nonoverlapping(msg as *const T, slot.as_mut_ptr(), 1) };
-        // SAFETY: fully initialized just above.
+        // SAFETY: `slot` is a properly aligned, writable place for one T.
+        unsafe { msg.write_used(slot.as_mut_ptr()) };
+        // SAFETY: every field but the counted arrays' tails was written just above. The tails
+        // are bytes of the service's shared memory (a file mapping, zero-filled when created,
+        // since written only with this type's samples), so every byte holds a value, and every
+        // bit pattern is a valid value of the payloads' fields (integers and floats only, as
+        // for `Zeroed`); nothing reads them (see `used`).
         let sample = unsafe { sample.assume_init() };
         sample.send().map_err(|e| err(format!("send on {}", T::SERVICE), e))?;
         self.seq += 1;
@@ -428,14 +434,16 @@ impl PublisherLock {
 }
 
 impl<T: Topic> Sub<T> {
-    /// Drains the queue; copies the newest *valid* sample into `out` and
-    /// returns true if there was one. Invalid samples are counted and dropped.
+    /// Drains the queue; copies the newest *valid* sample into `out` (its used part:
+    /// [`UsedPart`]) and returns true if there was one. Invalid samples are counted and
+    /// dropped.
     pub fn latest(&mut self, out: &mut T, lim: &ContractLimits) -> Result<bool, BusError> {
         let mut got = false;
         self.for_each_checked(
             |m| m.validate(lim),
             |m| {
-                *out = *m;
+                // SAFETY: `out` is a valid, aligned T.
+                unsafe { m.write_used(out) };
                 got = true;
             },
         )?;
@@ -457,7 +465,8 @@ impl<T: Topic> Sub<T> {
             |m| m.validate(lim),
             |m, origin| {
                 if accept(origin) {
-                    *out = *m;
+                    // SAFETY: `out` is a valid, aligned T.
+                    unsafe { m.write_used(out) };
                     got = Some(origin);
                 } else {
                     foreign += 1;

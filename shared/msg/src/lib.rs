@@ -9,8 +9,10 @@
 pub mod bus;
 pub mod traj;
 pub mod types;
+pub mod used;
 pub mod validate;
 
 pub use traj::JointSample;
 pub use types::*;
+pub use used::UsedPart;
 pub use validate::{ContractLimits, Validate, ValidationError};

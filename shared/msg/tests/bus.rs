@@ -223,3 +223,105 @@ fn a_publisher_lock_follows_the_runs_own_state_publisher_and_the_next_when_it_le
     assert!(lock.latest(&reader, &mut locked, &mut got, &lim()).unwrap());
     assert_eq!(got.q[0], 0.6);
 }
+
+/// A forecast of `count` tracks of `steps` steps, each value telling where it came from.
+fn forecast(count: usize, steps: usize, tag: f64) -> Box<DebrisForecast> {
+    let mut f = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    (f.count, f.steps, f.dt_s) = (count as u32, steps as u32, 0.1);
+    for (i, tr) in f.tracks.iter_mut().enumerate().take(count) {
+        (tr.id, tr.bounding_radius, tr.shape) = (i as u32, 0.2, DebrisShape::sphere(0.2));
+        for (k, st) in tr.steps.iter_mut().enumerate().take(steps) {
+            *st = ForecastStep {
+                p: [tag + i as f64, k as f64 * 0.01, 0.0],
+                q: [1.0, 0.0, 0.0, 0.0],
+                sigma_m: 0.05,
+                sigma_pos_m: 0.05,
+            };
+        }
+    }
+    f
+}
+
+#[test]
+fn the_bus_moves_the_used_part_of_a_message_and_the_reader_sees_all_of_it() {
+    let run = run_id("used");
+    let _clean = Leftovers(run.clone());
+    let a = Bus::new(&run, "a").unwrap();
+    let b = Bus::new(&run, "b").unwrap();
+    let mut p = a.publisher::<DebrisForecast>(Source::Predictor).unwrap();
+    let mut s = b.subscriber::<DebrisForecast>().unwrap();
+    p.update_connections().unwrap();
+    // A full forecast first (every track and step of the samples' memory written), then
+    // smaller ones: each is read back whole, wherever its samples' tails stood.
+    let mut got = forecast(MAX_DEBRIS, FORECAST_STEPS, 100.0);
+    for (count, steps, tag) in
+        [(MAX_DEBRIS, FORECAST_STEPS, 1.0), (3, 12, 2.0), (5, 40, 3.0), (1, 1, 4.0), (0, 7, 5.0)]
+    {
+        let mut f = forecast(count, steps, tag);
+        // What lies beyond the counts of the sent message is not part of it.
+        if count < MAX_DEBRIS {
+            f.tracks[count].steps[0].p = [f64::NAN; 3];
+        }
+        if steps < FORECAST_STEPS && count > 0 {
+            f.tracks[0].steps[steps].sigma_m = f64::INFINITY;
+        }
+        p.publish(&mut f).unwrap();
+        assert!(s.latest(&mut got, &lim()).unwrap(), "{count} tracks × {steps} steps");
+        assert_eq!((got.count, got.steps, got.header.seq), (count as u32, steps as u32, f.header.seq));
+        for i in 0..count {
+            assert_eq!(got.tracks[i].id, i as u32);
+            assert_eq!(got.tracks[i].shape, DebrisShape::sphere(0.2));
+            assert_eq!(
+                got.tracks[i].steps[..steps],
+                f.tracks[i].steps[..steps],
+                "{count} × {steps}: track {i}"
+            );
+        }
+        assert_eq!(f.used_bytes(), 56 + count * (72 + 72 * steps));
+    }
+    // Nothing beyond the counts was copied: the reader's tails hold the last message that
+    // used them (track 10: the first, full one; track 0's step 1: the 5 × 40 one).
+    assert_eq!(got.tracks[10].steps[0].p[0], 1.0 + 10.0);
+    assert_eq!(got.tracks[0].steps[1].p[0], 3.0);
+    assert_eq!(s.rejected, 0);
+
+    // Trajectories: each joint's own segment count.
+    let mut tp = a.publisher::<Trajectory>(Source::TrajectorySource).unwrap();
+    let mut ts = b.subscriber::<Trajectory>().unwrap();
+    tp.update_connections().unwrap();
+    let mut t = Trajectory::hold(&[0.25; NJ]);
+    t.n_seg = [1, 2, 3, 1, 5, 1];
+    for j in 0..NJ {
+        for k in 0..MAX_SEGMENTS {
+            t.seg[j][k] =
+                JerkSegment { t0: k as f64 * 0.1, p: 0.25 + j as f64 * 0.01, v: 0.0, a: 0.0, j: 0.0 };
+        }
+    }
+    t.duration_s = 1.0;
+    let mut gt = <Trajectory as Zeroed>::zeroed();
+    tp.publish(&mut t).unwrap();
+    assert!(ts.latest(&mut gt, &lim()).unwrap());
+    for j in 0..NJ {
+        let n = t.n_seg[j] as usize;
+        assert_eq!(gt.seg[j][..n], t.seg[j][..n]);
+        assert_eq!(gt.seg[j][n].t0, 0.0, "joint {j}: segment {n} is beyond its count");
+        assert_eq!(gt.sample(0.7).p[j], t.sample(0.7).p[j]);
+    }
+    assert_eq!((gt.duration_s, gt.n_seg), (1.0, t.n_seg));
+    assert_eq!(t.used_bytes(), 80 + 13 * 40);
+
+    // Observation frames: `count` items.
+    let mut op = a.publisher::<DebrisObservation>(Source::Sim).unwrap();
+    let mut os = b.subscriber::<DebrisObservation>().unwrap();
+    op.update_connections().unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    frame.count = 2;
+    for (i, it) in frame.items.iter_mut().enumerate() {
+        it.id = 10 + i as u32;
+    }
+    op.publish(&mut frame).unwrap();
+    let mut ids = Vec::new();
+    os.for_each_checked(|_| Ok(()), |f| ids.extend(f.items[..f.count as usize].iter().map(|o| o.id)))
+        .unwrap();
+    assert_eq!(ids, [10, 11]);
+}
