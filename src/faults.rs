@@ -118,7 +118,10 @@ fn describe(f: Fault) -> (String, String) {
             (format!("{how} {p}"), then.to_string())
         }
         Fault::Inject(s) => (
-            format!("NaN/out-of-range on {}", s.name()),
+            match s {
+                Service::Observation => format!("NaN/out-of-range/stamped 1000 s ahead on {}", s.name()),
+                _ => format!("NaN/out-of-range on {}", s.name()),
+            },
             "rejected and counted, arm at rest within limits, run not ok".into(),
         ),
         Fault::Rogue(p) => (
@@ -205,40 +208,50 @@ fn inject(run: &str, s: Service, n: u64) -> Result<u64, String> {
             let mut p = bus.publisher::<$t>($src).map_err(e)?;
             let mut m = Box::new(<$t as Zeroed>::zeroed());
             for i in 0..n {
-                let f: &dyn Fn(&mut $t, bool) = &$bad;
-                f(&mut m, i % 2 == 0);
+                let f: &dyn Fn(&mut $t, u64) = &$bad;
+                f(&mut m, i);
                 p.publish(&mut m).map_err(e)?;
                 std::thread::sleep(Duration::from_millis(200));
             }
         }};
     }
-    let bad = |nan: bool| if nan { f64::NAN } else { 1e6 };
+    // NaN and out-of-range values in turn.
+    let bad = |i: u64| if i.is_multiple_of(2) { f64::NAN } else { 1e6 };
     match s {
-        Service::RobotState => send!(RobotState, Source::Sim, |m: &mut RobotState, nan| m.q[0] = bad(nan)),
+        Service::RobotState => send!(RobotState, Source::Sim, |m: &mut RobotState, i| m.q[0] = bad(i)),
         Service::TorqueCommand => {
-            send!(TorqueCommand, Source::Tracker, |m: &mut TorqueCommand, nan| { m.tau[0] = bad(nan) })
+            send!(TorqueCommand, Source::Tracker, |m: &mut TorqueCommand, i| { m.tau[0] = bad(i) })
         }
-        Service::Trajectory => send!(Trajectory, Source::Planner, |m: &mut Trajectory, nan| {
+        Service::Trajectory => send!(Trajectory, Source::Planner, |m: &mut Trajectory, i| {
             m.traj_id = 999;
             m.n_seg = [1; 6];
             m.duration_s = 1.0;
-            m.seg[0][0].p = bad(nan);
+            m.seg[0][0].p = bad(i);
         }),
-        Service::Goal => send!(Goal, Source::User, |m: &mut Goal, nan| {
+        Service::Goal => send!(Goal, Source::User, |m: &mut Goal, i| {
             m.kind = 0;
-            m.q[2] = bad(nan)
+            m.q[2] = bad(i)
         }),
-        Service::Observation => send!(DebrisObservation, Source::Sim, |m: &mut DebrisObservation, nan| {
+        // Every third: a plausible pose of a new object, stamped 1000 s ahead of the plant
+        // clock (it would age every track out).
+        Service::Observation => send!(DebrisObservation, Source::Sim, |m: &mut DebrisObservation, i| {
             m.count = 1;
             m.items[0].q = [1.0, 0.0, 0.0, 0.0];
-            m.items[0].p[0] = bad(nan);
+            if i % 3 == 2 {
+                (m.items[0].id, m.items[0].p, m.items[0].bounding_radius) = (999, [3.0, 0.0, 0.0], 0.2);
+                m.header.stamp_ns = 1_000_000_000_000;
+                m.items[0].t_meas_ns = 1_000_000_000_000;
+            } else {
+                m.items[0].p = [bad(i), 0.0, 0.0];
+                (m.header.stamp_ns, m.items[0].t_meas_ns) = (0, 0);
+            }
         }),
-        Service::Forecast => send!(DebrisForecast, Source::Predictor, |m: &mut DebrisForecast, nan| {
+        Service::Forecast => send!(DebrisForecast, Source::Predictor, |m: &mut DebrisForecast, i| {
             m.count = 1;
             m.steps = 1;
             m.dt_s = 0.1;
             m.tracks[0].steps[0].q = [1.0, 0.0, 0.0, 0.0];
-            m.tracks[0].steps[0].p[0] = bad(nan);
+            m.tracks[0].steps[0].p[0] = bad(i);
         }),
     }
     Ok(n)

@@ -81,15 +81,20 @@ pub fn check_model_files(sc: &Scenario) -> Result<(), String> {
 /// plus the predictor's own gate statistics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct ObsCounters {
-    /// Frames received / rejected as a whole (bad `count`).
+    /// Frames received / rejected as a whole (bad `count`, a bad depth image, or a stamp
+    /// far ahead of the frames before: `frames_ahead`).
     pub frames: u64,
     pub frames_rejected: u64,
+    /// Of `frames_rejected`: frames stamped more than the track timeout after the newest
+    /// frame so far, not (yet) confirmed by the frames after them ([`FrameClock`]).
+    pub frames_ahead: u64,
     /// Frames lost on the bus before the predictor read them (gaps in the publisher's
     /// sequence numbers; 0 in process).
     pub frames_lost: u64,
     /// Items received.
     pub items: u64,
-    /// Items rejected by the contract check (NaN/Inf, out-of-range position, non-unit quaternion...).
+    /// Items rejected by the contract check (NaN/Inf, out-of-range position, non-unit
+    /// quaternion, measured after the frame that carries them was sent...).
     pub items_invalid: u64,
     /// Items rejected by the predictor's gate (impossible jumps, out of order, table full, ...).
     pub items_gated: u64,
@@ -104,6 +109,55 @@ impl ObsCounters {
     /// Every rejected observation item (a rejected frame counts once).
     pub fn rejected(&self) -> u64 {
         self.frames_rejected + self.items_invalid + self.items_gated
+    }
+}
+
+/// The frames' clock, checked. The predictor drops a track when the newest time it has seen
+/// is more than the track timeout past the track's last pose, so one frame stamped far ahead
+/// (a bad clock, a corrupted message) would age every track out at once, and the objects it
+/// carried would then be refused as out of order until the real clock caught up. A frame
+/// stamped more than `lead` after the newest admitted one is refused; the clock moves on to it
+/// only when [`STAMP_CONFIRM`] such frames in a row (each within `lead` of the one before)
+/// say so: a sensor back after an outage, not one bad stamp. Stamps at or behind the newest
+/// are admitted (their items are gated per track as out of order where they are).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameClock {
+    newest_ns: Option<u64>,
+    ahead: Option<(u64, u32)>,
+}
+
+/// [`FrameClock`]: frames in a row that confirm a jump of the clock.
+pub const STAMP_CONFIRM: u32 = 3;
+
+impl FrameClock {
+    /// Whether a frame stamped `stamp_ns` is admitted, with `lead_ns` the largest step ahead
+    /// taken without confirmation.
+    pub fn admit(&mut self, stamp_ns: u64, lead_ns: u64) -> bool {
+        let Some(newest) = self.newest_ns else {
+            self.newest_ns = Some(stamp_ns);
+            return true;
+        };
+        if stamp_ns <= newest.saturating_add(lead_ns) {
+            self.newest_ns = Some(newest.max(stamp_ns));
+            self.ahead = None;
+            return true;
+        }
+        let n = match self.ahead {
+            Some((prev, n)) if stamp_ns >= prev && stamp_ns - prev <= lead_ns => n + 1,
+            _ => 1,
+        };
+        if n >= STAMP_CONFIRM {
+            (self.newest_ns, self.ahead) = (Some(stamp_ns), None);
+            true
+        } else {
+            self.ahead = Some((stamp_ns, n));
+            false
+        }
+    }
+
+    /// The newest admitted stamp, ns.
+    pub fn newest_ns(&self) -> Option<u64> {
+        self.newest_ns
     }
 }
 
@@ -295,6 +349,8 @@ pub struct PredictorCore {
     sky_empty: bool,
     /// The depth capture being read: its stamp and whether a frame of it labelled an object.
     capture: Option<(u64, bool)>,
+    /// The frames' stamps, checked before a frame is read.
+    clock: FrameClock,
 }
 
 impl PredictorCore {
@@ -317,6 +373,7 @@ impl PredictorCore {
             seen: Some(Box::new(<DebrisObservation as dkrrt_msg::Zeroed>::zeroed())),
             sky_empty: false,
             capture: None,
+            clock: FrameClock::default(),
         }
     }
 
@@ -382,6 +439,10 @@ impl PredictorCore {
             self.counters.frames_rejected += 1;
             return;
         }
+        // A depth frame's stamp was checked with its image (`depth_valid`).
+        if sensor && !self.admit_stamp(frame.header.stamp_ns) {
+            return;
+        }
         if sensor {
             self.sky_empty = frame.count == 0;
             if self.sky_empty && self.pred.n_tracks() == 0 {
@@ -392,7 +453,9 @@ impl PredictorCore {
         }
         for (i, it) in frame.items[..frame.count as usize].iter().enumerate() {
             self.counters.items += 1;
-            if it.validate_item(lim, i).is_err() {
+            // Measured after the frame that carries it was sent: a bad stamp, ahead of the
+            // clock the frames were checked on.
+            if it.validate_item(lim, i).is_err() || it.t_meas_ns > frame.header.stamp_ns {
                 self.counters.items_invalid += 1;
                 continue;
             }
@@ -531,10 +594,26 @@ impl PredictorCore {
     fn depth_valid(&mut self, img: &dkrrt_msg::DepthImage, lim: &ContractLimits) -> bool {
         use dkrrt_msg::Validate;
         if img.validate(lim).is_ok() {
-            return true;
+            if self.admit_stamp(img.header.stamp_ns) {
+                return true;
+            }
+            self.counters.frames += 1;
+            return false;
         }
         self.counters.frames += 1;
         self.counters.frames_rejected += 1;
+        false
+    }
+
+    /// [`FrameClock::admit`] with the track timeout as the lead; a refused frame is counted
+    /// (`frames_rejected`, `frames_ahead`).
+    fn admit_stamp(&mut self, stamp_ns: u64) -> bool {
+        let lead_ns = (self.pred.config().track_timeout * 1e9) as u64;
+        if self.clock.admit(stamp_ns, lead_ns) {
+            return true;
+        }
+        self.counters.frames_rejected += 1;
+        self.counters.frames_ahead += 1;
         false
     }
 

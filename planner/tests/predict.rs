@@ -404,3 +404,74 @@ fn a_track_that_lags_the_newest_is_read_past_its_own_horizon_as_the_planner_read
     .sqrt();
     assert!(err <= s[last].sigma_pos_m, "error {err} m, bound {} m", s[last].sigma_pos_m);
 }
+
+/// One frame stamped far ahead would, by its stamp alone, age every track out (and its
+/// object's later poses would be refused as out of order): it is refused and counted, the
+/// tracks and their forecasts go on; an item measured after its frame was sent is refused as
+/// invalid. A clock that really jumped (a sensor back after an outage) is followed once
+/// `STAMP_CONFIRM` frames in a row say so.
+#[test]
+fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
+    use dkrrt_planner::predict::{FrameClock, STAMP_CONFIRM};
+    let mut sc = scenario("sparse-slow", "constant-velocity");
+    sc.debris.latency_jitter_s = 0.0;
+    sc.debris.dropout = 0.0;
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    let mut last = <DebrisObservation as Zeroed>::zeroed();
+    let l = lim();
+    let mut run = |core: &mut PredictorCore, ms: usize, last: &mut DebrisObservation| {
+        let mut frame = <DebrisObservation as Zeroed>::zeroed();
+        for _ in 0..ms {
+            side.step(1e-3);
+            side.drain_observations::<()>(&mut frame, |f| {
+                core.observe_frame(f, &l);
+                *last = *f;
+                Ok(())
+            })
+            .unwrap();
+        }
+    };
+    run(&mut core, 2000, &mut last);
+    let tracks = core.predictor().n_tracks();
+    assert!(tracks >= 4, "{tracks}");
+    let before = core.counters;
+    // 1000 s ahead, frame and item alike.
+    let mut bad = last;
+    bad.count = 1;
+    bad.header.stamp_ns += 1_000_000_000_000;
+    bad.items[0].t_meas_ns += 1_000_000_000_000;
+    core.observe_frame(&bad, &l);
+    assert_eq!(core.counters.frames_ahead, 1);
+    assert_eq!(core.counters.frames_rejected, before.frames_rejected + 1);
+    assert_eq!(core.predictor().n_tracks(), tracks, "no track aged out");
+    // An item measured after its frame was sent.
+    let mut late = last;
+    late.count = 1;
+    late.items[0].t_meas_ns = late.header.stamp_ns + 1;
+    core.observe_frame(&late, &l);
+    assert_eq!(core.counters.items_invalid, before.items_invalid + 1);
+    // The run goes on: every object still tracked, none refused as out of order.
+    run(&mut core, 500, &mut last);
+    assert_eq!(core.predictor().n_tracks(), tracks);
+    assert_eq!((core.gate().out_of_order, core.gate().tracks_dropped), (0, 0), "{:?}", core.gate());
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    assert_eq!(core.forecast_into(&mut msg), tracks);
+
+    // The clock alone: behind or within the lead, admitted; far ahead, refused until
+    // `STAMP_CONFIRM` frames in a row confirm the jump.
+    let s = 1_000_000_000u64;
+    let mut c = FrameClock::default();
+    assert!(c.admit(10 * s, s) && c.admit(9 * s, s) && c.admit(11 * s, s));
+    assert!(!c.admit(100 * s, s), "one frame 89 s ahead");
+    assert!(c.admit(11 * s + 20_000_000, s), "the real clock goes on");
+    for k in 0..STAMP_CONFIRM as u64 {
+        let ok = c.admit(50 * s + k * 20_000_000, s);
+        assert_eq!(ok, k + 1 == STAMP_CONFIRM as u64, "frame {k} of a real jump");
+    }
+    assert_eq!(c.newest_ns(), Some(50 * s + (STAMP_CONFIRM as u64 - 1) * 20_000_000));
+    // A jump "confirmed" by frames far apart from each other is not.
+    let mut c = FrameClock::default();
+    assert!(c.admit(0, s));
+    assert!(!c.admit(10 * s, s) && !c.admit(20 * s, s) && !c.admit(30 * s, s));
+}
