@@ -119,7 +119,9 @@ fn describe(f: Fault) -> (String, String) {
         }
         Fault::Inject(s) => (
             match s {
-                Service::Observation => format!("NaN/out-of-range/stamped 1000 s ahead on {}", s.name()),
+                Service::Observation | Service::Forecast => {
+                    format!("NaN/out-of-range/stamped 1000 s ahead on {}", s.name())
+                }
                 _ => format!("NaN/out-of-range on {}", s.name()),
             },
             "rejected and counted, arm at rest within limits, run not ok".into(),
@@ -251,7 +253,14 @@ fn inject(run: &str, s: Service, n: u64) -> Result<u64, String> {
             m.steps = 1;
             m.dt_s = 0.1;
             m.tracks[0].steps[0].q = [1.0, 0.0, 0.0, 0.0];
-            m.tracks[0].steps[0].p[0] = bad(i);
+            // Every third: a plausible forecast stamped 1000 s ahead of the plant clock.
+            if i % 3 == 2 {
+                m.t0_ns = 1_000_000_000_000;
+                m.tracks[0].steps[0].p = [3.0, 0.0, 0.0];
+            } else {
+                m.t0_ns = 0;
+                m.tracks[0].steps[0].p = [bad(i), 0.0, 0.0];
+            }
         }),
     }
     Ok(n)

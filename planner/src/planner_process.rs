@@ -31,6 +31,8 @@ pub struct PlannerReport {
     #[serde(flatten)]
     pub summary: Summary,
     pub forecasts_received: u64,
+    /// Messages refused: by the bus's contract checks, and forecasts stamped ahead of the
+    /// plant clock (`forecasts_ahead`).
     pub rejected: u64,
     /// End-effector pose goals no IK solution reached (the goal in force was kept).
     pub pose_goals_unreachable: u64,
@@ -160,7 +162,11 @@ pub fn run(
             ProcessState::Running,
             core.stats.cycles,
             core.stats.deadline_misses,
-            state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
+            state_sub.rejected
+                + cmd_sub.rejected
+                + fc_sub.rejected
+                + goal_sub.rejected
+                + core.stats.forecasts_ahead,
             core.stats.fallbacks.brake,
         )
         .map_err(|e| e.to_string())?;
@@ -185,7 +191,11 @@ pub fn run(
     let rep = PlannerReport {
         summary: core.summary(&sc.planner.method),
         forecasts_received: forecasts,
-        rejected: state_sub.rejected + cmd_sub.rejected + fc_sub.rejected + goal_sub.rejected,
+        rejected: state_sub.rejected
+            + cmd_sub.rejected
+            + fc_sub.rejected
+            + goal_sub.rejected
+            + core.stats.forecasts_ahead,
         pose_goals_unreachable,
         stopped_by_signal,
     };

@@ -147,7 +147,16 @@ pub struct ReplanStats {
     pub goal_reached_s: Option<f64>,
     /// Cycles that did not plan because no forecast had come yet (debris expected).
     pub cycles_waiting_for_forecast: u64,
+    /// Forecasts refused as stamped ahead of the cycle's plant time by more than
+    /// [`FORECAST_LEAD_S`] ([`Replanner::step`]).
+    pub forecasts_ahead: u64,
 }
+
+/// A forecast starts at its newest observation, which is never after the plant time it is
+/// read at; one stamped more than this ahead of a cycle (a bad clock, a corrupted message)
+/// would be read backwards from its first step, its objects placed where they were long
+/// before: [`Replanner::step`] refuses it, counts it and keeps the forecast it had, s.
+pub const FORECAST_LEAD_S: f64 = 1.0;
 
 /// What the replanning loop did over a run (the `planner` section of reports, the same for
 /// the process and the lockstep).
@@ -172,6 +181,8 @@ pub struct Summary {
     pub goal_reached_s: Option<f64>,
     /// Cycles that did not plan because no forecast had come yet.
     pub cycles_waiting_for_forecast: u64,
+    /// Forecasts refused as stamped more than [`FORECAST_LEAD_S`] ahead of the cycle.
+    pub forecasts_ahead: u64,
     pub iterations: u64,
     /// Configurations the planner checked over the run (searches, plan checks, dodges): its
     /// work, whatever the machine's speed.
@@ -303,6 +314,7 @@ impl Replanner {
             plans_rejected_by_final_check: s.plans_rejected_by_final_check,
             goal_reached_s: s.goal_reached_s,
             cycles_waiting_for_forecast: s.cycles_waiting_for_forecast,
+            forecasts_ahead: s.forecasts_ahead,
             iterations: s.planner_iterations,
             configs_checked: self.planner.checker.configs_checked,
         }
@@ -322,7 +334,8 @@ impl Replanner {
     }
 
     /// One planning cycle at plant time `now_ns`. `forecast`: the newest forecast, if a new
-    /// one arrived (`None` keeps the last). `clock()` reads a monotonic clock in ns (for the
+    /// one arrived (`None` keeps the last; one stamped more than [`FORECAST_LEAD_S`] after
+    /// `now_ns` is refused and counted, and the last is kept too). `clock()` reads a monotonic clock in ns (for the
     /// compute time and the deadline; the lockstep passes a real clock too, the budget is
     /// `cfg.iterations` either way). Writes a new trajectory into `out` when `publish`.
     #[allow(clippy::too_many_arguments)]
@@ -340,8 +353,12 @@ impl Replanner {
         let cc0 = self.planner.checker.configs_checked;
         self.stats.cycles += 1;
         if let Some(f) = forecast {
-            self.world.load_forecast(f);
-            self.have_forecast = true;
+            if f.t0_ns as f64 * 1e-9 > now_ns as f64 * 1e-9 + FORECAST_LEAD_S {
+                self.stats.forecasts_ahead += 1;
+            } else {
+                self.world.load_forecast(f);
+                self.have_forecast = true;
+            }
         }
         let t_now = now_ns as f64 * 1e-9;
         let goal_changed = self.goal.is_none_or(|g| g != *goal);

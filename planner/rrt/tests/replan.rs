@@ -545,3 +545,32 @@ fn reachable_pose_goals_get_an_ik_solution() {
     }
     assert!(none <= 1, "{none} of 400 reachable poses without a solution");
 }
+
+/// A forecast stamped far ahead of the cycle's plant time would be read backwards from its
+/// first step: its objects placed where they were long before, away from the arm. It is
+/// refused and counted, and the forecast the planner had stays in force: the arm does not
+/// move into the object it knows about.
+#[test]
+fn a_forecast_stamped_ahead_of_the_plant_clock_is_refused_and_the_last_one_kept() {
+    use dkrrt_rrt::replan::FORECAST_LEAD_S;
+    let mut rp = replanner();
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    // A sphere sitting on the arm at START: nothing clean; the arm stays.
+    let on_arm = forecast(0, ee_at(&START), 0.2);
+    rp.step(0, &START, idle, Some(&on_arm), &GOAL, &mut clk, &mut out);
+    let before = rp.predicted_clearance(&START, 0.1).unwrap();
+    assert!(before < 0.0, "{before}");
+    // The same object, said to be 50 m away, from a forecast stamped 100 s ahead: refused.
+    let ahead = forecast(100_000_000_000, [50.0, 0.0, 0.0], 0.2);
+    rp.step(100_000_000, &START, idle, Some(&ahead), &GOAL, &mut clk, &mut out);
+    assert_eq!(rp.summary("dk-rrt").forecasts_ahead, 1);
+    assert!(rp.predicted_clearance(&START, 0.2).unwrap() < 0.0, "the last forecast is in force");
+    // Within the lead (the lockstep's forecasts may run a little ahead of a cycle): taken.
+    let near = forecast(200_000_000 + (0.5 * FORECAST_LEAD_S * 1e9) as u64, [50.0, 0.0, 0.0], 0.2);
+    rp.step(200_000_000, &START, idle, Some(&near), &GOAL, &mut clk, &mut out);
+    assert_eq!(rp.summary("dk-rrt").forecasts_ahead, 1);
+    let c = rp.predicted_clearance(&START, 1.0).unwrap();
+    assert!(c > 0.0, "the new forecast is in force: {c}");
+}
