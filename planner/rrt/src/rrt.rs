@@ -159,6 +159,10 @@ pub const DODGE_TIME_GAIN_S: f64 = 0.5;
 /// When none puts it off so, a dodge must cut the depth integrated over the look-ahead to at
 /// most this fraction of staying's.
 pub const DODGE_AREA_FRACTION: f64 = 0.75;
+/// When the arm is already deep in the bounds and none of those rules takes a candidate, a
+/// dodge scored against the predicted shapes alone that stays out of them as staying does must
+/// keep this much more clearance from them, m ([`Planner::dodge`]).
+pub const DODGE_LIKELY_GAIN_M: f64 = 0.05;
 
 /// A dodge candidate over the look-ahead: its smallest predicted clearance (m; negative: a
 /// depth into the inflated obstacles), the first sample time deeper than `dodge_depth_m`
@@ -636,8 +640,15 @@ impl Planner {
     /// the arm backs out rather than wait in the bound for the object: of the candidates that end
     /// no deeper than `dodge_depth_m` and are never deeper than staying gets, the one with the
     /// least depth integrated over the look-ahead, if that is at most [`DODGE_AREA_FRACTION`] of
-    /// staying's. A bound metres deep that no candidate leaves says nothing of where in it the
-    /// object is: no dodge.
+    /// staying's.
+    ///
+    /// When none of that takes a candidate and the arm is already deeper than `dodge_depth_m`
+    /// where it would stay (a bound that holds the arm whatever it does, as after an object
+    /// seen again close by, its axis unknown: its whole sweep), the bounds say nothing more of
+    /// where in them the object is, and braking there waits for it: the nearby candidates are
+    /// scored against the predicted shapes alone (bounds × 0), where the objects most likely
+    /// are, and the one that meets them latest is taken if that is [`DODGE_TIME_GAIN_S`] later
+    /// than staying (`dodge_likely`).
     ///
     /// A best effort, not a clean plan: its clearance
     /// may be negative, and the next cycle checks it like any other plan. Candidates are tried
@@ -659,6 +670,9 @@ impl Planner {
         let mut best: Option<([f64; NJ], DodgeScore)> = None;
         let mut least: Option<([f64; NJ], DodgeScore)> = None;
         let step = self.cfg.step_rad;
+        // The nearby candidates (not the goal), for `dodge_likely`.
+        let mut near = [[0.0; NJ]; 2 * NJ + DODGE_RANDOM];
+        let mut n_near = 0;
         for k in 0..(2 * NJ + DODGE_RANDOM + 1) {
             if !keep_going() {
                 break; // the candidates so far (the deadline)
@@ -673,6 +687,10 @@ impl Planner {
                 req.goal
             };
             let q: [f64; NJ] = std::array::from_fn(|j| q[j].clamp(self.q_min[j], self.q_max[j]));
+            if k < 2 * NJ + DODGE_RANDOM {
+                near[n_near] = q;
+                n_near += 1;
+            }
             if let Some(s) = self.dodge_score(world, &q) {
                 if best.is_none_or(|(_, b)| s.deep > b.deep || (s.deep == b.deep && s.min > b.min)) {
                     best = Some((q, s));
@@ -699,6 +717,11 @@ impl Planner {
             {
                 l
             }
+            // Already that deep where it would stay, as every candidate is: the bounds say
+            // nothing more of where in them the objects are.
+            _ if stay.deep <= self.t0 + 2.0 * DODGE_DT => {
+                self.dodge_likely(world, &stay_q, &near[..n_near], &mut keep_going)?
+            }
             _ => return None,
         };
         if self.nodes.len() >= self.nodes.capacity() {
@@ -707,6 +730,50 @@ impl Planner {
         self.nodes.push(Node { q, t: arrival, parent: ROOT, wait: 0.0, min_clear: score });
         self.write(1, None, traj_id, out).ok()?;
         Some(Plan { reach: Reach::Escape, arrival, min_clearance: score, n_waypoints: 1 })
+    }
+
+    /// [`Planner::dodge`] when the arm is already deeper than `dodge_depth_m` in the bounds
+    /// where it would stay and no candidate is taken by the bounds' rules: the candidates
+    /// `near` (the goal left out: a dodge stays a nearby move) scored against the predicted
+    /// shapes alone (bounds × 0, the margin kept), where the objects most likely are. The one
+    /// that goes `dodge_depth_m` into them latest (never, best; ties to the larger clearance)
+    /// is taken if that is [`DODGE_TIME_GAIN_S`] later than staying does, or, when staying
+    /// never does, if it never does either and keeps [`DODGE_LIKELY_GAIN_M`] more clearance
+    /// (moving on away rather than braking halfway out). Returns it with its score against
+    /// the bounds, as any dodge.
+    fn dodge_likely(
+        &mut self,
+        world: &WorldInTime,
+        stay_q: &[f64; NJ],
+        near: &[[f64; NJ]],
+        keep_going: &mut impl FnMut() -> bool,
+    ) -> Option<([f64; NJ], DodgeScore)> {
+        world.set_bound_scale(0.0);
+        let found = (|| {
+            let stay = self.dodge_score(world, stay_q)?;
+            let mut best: Option<([f64; NJ], DodgeScore)> = None;
+            for q in near {
+                if !keep_going() {
+                    break;
+                }
+                if let Some(s) = self.dodge_score(world, q) {
+                    if best.is_none_or(|(_, b)| s.deep > b.deep || (s.deep == b.deep && s.min > b.min)) {
+                        best = Some((*q, s));
+                    }
+                }
+            }
+            best.filter(|(_, b)| {
+                if stay.deep.is_finite() {
+                    b.deep >= stay.deep + DODGE_TIME_GAIN_S
+                } else {
+                    b.deep.is_infinite() && b.min >= stay.min + DODGE_LIKELY_GAIN_M
+                }
+            })
+        })();
+        world.set_bound_scale(1.0);
+        let (q, _) = found?;
+        // Scored as a dodge is (with the bounds), for the plan's figures.
+        Some((q, self.dodge_score(world, &q)?))
     }
 
     /// How "move from the root to rest at `q`, then stay" fares over the look-ahead, sampled

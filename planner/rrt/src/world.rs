@@ -107,6 +107,10 @@ pub struct WorldInTime {
     pub t0: f64,
     /// End of the forecast horizon (last step), s.
     pub horizon_end: f64,
+    /// The forecasts' bounds are taken times this (1: as published; 0: the predicted shapes
+    /// themselves, where the objects most likely are), the margin unchanged
+    /// ([`WorldInTime::set_bound_scale`]).
+    bound_scale: std::cell::Cell<f64>,
 }
 
 impl WorldInTime {
@@ -129,7 +133,14 @@ impl WorldInTime {
                 grid_dt: 0.0,
             })
             .collect();
-        WorldInTime { tracks, n: 0, margin: margin_m, t0: 0.0, horizon_end: 0.0 }
+        WorldInTime {
+            tracks,
+            n: 0,
+            margin: margin_m,
+            t0: 0.0,
+            horizon_end: 0.0,
+            bound_scale: std::cell::Cell::new(1.0),
+        }
     }
 
     pub fn margin(&self) -> f64 {
@@ -138,6 +149,12 @@ impl WorldInTime {
 
     pub fn set_margin(&mut self, m: f64) {
         self.margin = m.max(0.0);
+    }
+
+    /// Takes the forecasts' bounds times `k ≥ 0` in every check until set back to 1 (0: the
+    /// predicted shapes alone, grown by the margin: where the objects most likely are).
+    pub fn set_bound_scale(&self, k: f64) {
+        self.bound_scale.set(k.max(0.0));
     }
 
     /// Number of tracks.
@@ -331,7 +348,9 @@ impl WorldInTime {
             if mask >> i & 1 == 0 {
                 continue;
             }
-            let s = state_at(tr, t);
+            let mut s = state_at(tr, t);
+            let k = self.bound_scale.get();
+            (s.sigma, s.sigma_pos) = (s.sigma * k, s.sigma_pos * k);
             let base = self.margin + extra;
             if let Some(nr) = &near {
                 // Every obstacle built below lies in the ball about `s.p` of radius `r`: its

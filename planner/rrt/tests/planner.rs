@@ -368,6 +368,57 @@ fn inside_a_receding_bound_there_is_no_dodge() {
     assert!(p.dodge(&req, &w, 9, || true, &mut out).is_none());
 }
 
+/// A bound that holds the arm whatever it does (an object whose position is known to a
+/// metre, already 0.7 m into the resting arm), with the object itself 0.35 m from a link and
+/// closing at 0.1 m/s: every candidate is as deep as staying from the first instant, so no
+/// rule on the bounds tells them apart, and braking there waits for the object. The dodge then
+/// moves the arm away from where the object most likely is (its predicted shape, bound × 0):
+/// staying meets the object itself within the look-ahead, the dodge keeps clear of it longer
+/// and ends farther from it.
+#[test]
+fn in_a_bound_that_holds_the_arm_the_dodge_moves_away_from_the_likely_object() {
+    let (r, sigma, speed, t0) = (0.1, 1.0, 0.1, 2.0);
+    let (w, p0, v, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.7, speed, t0);
+    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
+    assert_eq!(plan.reach, Reach::Escape);
+    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    let depth = p.cfg.dodge_depth_m;
+    assert!(each.iter().all(|x| x.1 < -depth && x.2 < -depth), "set-up: deep all along, moved or not");
+    // The object itself.
+    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
+    bare.set_margin(0.0);
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let t_end = t0 + p.cfg.lookahead_s;
+    let (mut moved, mut stay, mut t) = (f64::INFINITY, f64::INFINITY, t0);
+    let (mut hit_moved, mut hit_stay) = (f64::INFINITY, f64::INFINITY);
+    while t <= t_end {
+        let cm = ch.clearance_at(&bare, &out.sample(t - t0).p, t, 0.0, f64::NEG_INFINITY);
+        let cs = ch.clearance_at(&bare, &START, t, 0.0, f64::NEG_INFINITY);
+        (moved, stay) = (moved.min(cm), stay.min(cs));
+        if cm < 0.0 && hit_moved.is_infinite() {
+            hit_moved = t;
+        }
+        if cs < 0.0 && hit_stay.is_infinite() {
+            hit_stay = t;
+        }
+        t += 1e-3;
+    }
+    assert!(hit_stay < t_end, "set-up: staying meets the object within the look-ahead");
+    assert!(hit_moved >= hit_stay + DODGE_TIME_GAIN_S, "met at {hit_moved:.2} s, staying at {hit_stay:.2} s");
+    let end = out.sample(t_end - t0).p;
+    let (c_moved, c_stay) = (
+        ch.clearance_at(&bare, &end, t_end, 0.0, f64::NEG_INFINITY),
+        ch.clearance_at(&bare, &START, t_end, 0.0, f64::NEG_INFINITY),
+    );
+    assert!(
+        c_moved > c_stay + 0.05,
+        "at the end: dodge {c_moved:.3}, staying {c_stay:.3} ({moved:.3}, {stay:.3})"
+    );
+    // The bounds as published in every check after it.
+    assert!(ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY) < -0.6);
+}
+
 #[test]
 fn plans_are_deterministic_for_a_seed() {
     let (mid, t_mid) = straight_mid_point();
