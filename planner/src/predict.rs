@@ -85,9 +85,13 @@ pub struct ObsCounters {
     /// far ahead of the frames before: `frames_ahead`).
     pub frames: u64,
     pub frames_rejected: u64,
-    /// Of `frames_rejected`: frames stamped more than the track timeout after the newest
-    /// frame so far, not (yet) confirmed by the frames after them ([`FrameClock`]).
+    /// Of `frames_rejected`: frames stamped too far after the newest frame so far
+    /// ([`PredictorCore::stamp_lead_s`]), not (yet) confirmed by the frames after them
+    /// ([`FrameClock`]).
     pub frames_ahead: u64,
+    /// Frames refused as stamped too far ahead that the frames after them then confirmed (a
+    /// sensor back after a gap): lost, not rejected (not in `frames_rejected`).
+    pub frames_before_jump: u64,
     /// Frames lost on the bus before the predictor read them (gaps in the publisher's
     /// sequence numbers; 0 in process).
     pub frames_lost: u64,
@@ -113,9 +117,10 @@ impl ObsCounters {
 }
 
 /// The frames' clock, checked. The predictor drops a track when the newest time it has seen
-/// is more than the track timeout past the track's last pose, so one frame stamped far ahead
-/// (a bad clock, a corrupted message) would age every track out at once, and the objects it
-/// carried would then be refused as out of order until the real clock caught up. A frame
+/// is more than the track timeout past the track's last pose, so one frame stamped ahead by
+/// nearly that or more (a bad clock, a corrupted message) would age every track out at once,
+/// and the objects it carried would then be refused as out of order until the real clock
+/// caught up. A frame
 /// stamped more than `lead` after the newest admitted one is refused; the clock moves on to it
 /// only when [`STAMP_CONFIRM`] such frames in a row (each within `lead` of the one before)
 /// say so: a sensor back after an outage, not one bad stamp. Stamps at or behind the newest
@@ -129,18 +134,24 @@ pub struct FrameClock {
 /// [`FrameClock`]: frames in a row that confirm a jump of the clock.
 pub const STAMP_CONFIRM: u32 = 3;
 
+/// [`PredictorCore::stamp_lead_s`]: the share of the track timeout a frame may be stamped
+/// ahead of the newest one without confirmation (a frame stamped that far ahead can age out
+/// early only the tracks not seen for the rest of the timeout).
+pub const STAMP_LEAD_SHARE: f64 = 0.25;
+
 impl FrameClock {
     /// Whether a frame stamped `stamp_ns` is admitted, with `lead_ns` the largest step ahead
-    /// taken without confirmation.
-    pub fn admit(&mut self, stamp_ns: u64, lead_ns: u64) -> bool {
+    /// taken without confirmation: `None` refused; `Some(k)` admitted, `k` the frames refused
+    /// just before it that it confirms (0 but for the frame that confirms a jump).
+    pub fn admit(&mut self, stamp_ns: u64, lead_ns: u64) -> Option<u32> {
         let Some(newest) = self.newest_ns else {
             self.newest_ns = Some(stamp_ns);
-            return true;
+            return Some(0);
         };
         if stamp_ns <= newest.saturating_add(lead_ns) {
             self.newest_ns = Some(newest.max(stamp_ns));
             self.ahead = None;
-            return true;
+            return Some(0);
         }
         let n = match self.ahead {
             Some((prev, n)) if stamp_ns >= prev && stamp_ns - prev <= lead_ns => n + 1,
@@ -148,10 +159,10 @@ impl FrameClock {
         };
         if n >= STAMP_CONFIRM {
             (self.newest_ns, self.ahead) = (Some(stamp_ns), None);
-            true
+            Some(n - 1)
         } else {
             self.ahead = Some((stamp_ns, n));
-            false
+            None
         }
     }
 
@@ -351,6 +362,8 @@ pub struct PredictorCore {
     capture: Option<(u64, bool)>,
     /// The frames' stamps, checked before a frame is read.
     clock: FrameClock,
+    /// The sensor's frame period (the camera's on the depth input), s.
+    frame_period_s: f64,
 }
 
 impl PredictorCore {
@@ -374,6 +387,8 @@ impl PredictorCore {
             sky_empty: false,
             capture: None,
             clock: FrameClock::default(),
+            frame_period_s: 1.0
+                / if sc.depth_input() { sc.camera.rate_hz } else { sc.debris.sensor_rate_hz }.max(1e-3),
         }
     }
 
@@ -605,16 +620,32 @@ impl PredictorCore {
         false
     }
 
-    /// [`FrameClock::admit`] with the track timeout as the lead; a refused frame is counted
-    /// (`frames_rejected`, `frames_ahead`).
+    /// How far ahead of the newest frame a frame may be stamped without confirmation
+    /// ([`FrameClock`]): [`STAMP_LEAD_SHARE`] of the track timeout, but at least two frame
+    /// periods of the sensor (a dropped frame is no jump), s.
+    pub fn stamp_lead_s(&self) -> f64 {
+        (STAMP_LEAD_SHARE * self.pred.config().track_timeout).max(2.0 * self.frame_period_s)
+    }
+
+    /// [`FrameClock::admit`] with [`PredictorCore::stamp_lead_s`]; a refused frame is counted
+    /// (`frames_rejected`, `frames_ahead`), and moved to `frames_before_jump` when the frames
+    /// after it confirm the jump.
     fn admit_stamp(&mut self, stamp_ns: u64) -> bool {
-        let lead_ns = (self.pred.config().track_timeout * 1e9) as u64;
-        if self.clock.admit(stamp_ns, lead_ns) {
-            return true;
+        let lead_ns = (self.stamp_lead_s() * 1e9) as u64;
+        let c = &mut self.counters;
+        match self.clock.admit(stamp_ns, lead_ns) {
+            Some(k) => {
+                let k = k as u64;
+                (c.frames_rejected, c.frames_ahead) = (c.frames_rejected - k, c.frames_ahead - k);
+                c.frames_before_jump += k;
+                true
+            }
+            None => {
+                c.frames_rejected += 1;
+                c.frames_ahead += 1;
+                false
+            }
         }
-        self.counters.frames_rejected += 1;
-        self.counters.frames_ahead += 1;
-        false
     }
 
     /// A depth frame's part in the empty-sky rule: a rig's faces come as frames with the

@@ -420,19 +420,22 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
     let mut last = <DebrisObservation as Zeroed>::zeroed();
     let l = lim();
-    let mut run = |core: &mut PredictorCore, ms: usize, last: &mut DebrisObservation| {
+    // `ms` of the sensor's frames, read (or, `read` false, lost: a gap).
+    let mut run = |core: &mut PredictorCore, ms: usize, last: &mut DebrisObservation, read: bool| {
         let mut frame = <DebrisObservation as Zeroed>::zeroed();
         for _ in 0..ms {
             side.step(1e-3);
             side.drain_observations::<()>(&mut frame, |f| {
-                core.observe_frame(f, &l);
-                *last = *f;
+                if read {
+                    core.observe_frame(f, &l);
+                    *last = *f;
+                }
                 Ok(())
             })
             .unwrap();
         }
     };
-    run(&mut core, 2000, &mut last);
+    run(&mut core, 2000, &mut last, true);
     let tracks = core.predictor().n_tracks();
     assert!(tracks >= 4, "{tracks}");
     let before = core.counters;
@@ -444,6 +447,16 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     core.observe_frame(&bad, &l);
     assert_eq!(core.counters.frames_ahead, 1);
     assert_eq!(core.counters.frames_rejected, before.frames_rejected + 1);
+    assert_eq!(core.predictor().n_tracks(), tracks, "no track aged out at once");
+    // 0.9 s ahead, within the track timeout: admitted, its object would be refused as out of
+    // order for 0.9 s of real frames (and tracks not seen for 0.1 s aged out): refused too.
+    assert!(core.stamp_lead_s() <= 0.25 && core.stamp_lead_s() >= 2.0 / sc.debris.sensor_rate_hz);
+    let mut near = last;
+    near.count = 1;
+    near.header.stamp_ns += 900_000_000;
+    near.items[0].t_meas_ns += 900_000_000;
+    core.observe_frame(&near, &l);
+    assert_eq!(core.counters.frames_ahead, 2);
     assert_eq!(core.predictor().n_tracks(), tracks, "no track aged out");
     // An item measured after its frame was sent.
     let mut late = last;
@@ -452,7 +465,7 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     core.observe_frame(&late, &l);
     assert_eq!(core.counters.items_invalid, before.items_invalid + 1);
     // The run goes on: every object still tracked, none refused as out of order.
-    run(&mut core, 500, &mut last);
+    run(&mut core, 500, &mut last, true);
     assert_eq!(core.predictor().n_tracks(), tracks);
     assert_eq!((core.gate().out_of_order, core.gate().tracks_dropped), (0, 0), "{:?}", core.gate());
     let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
@@ -462,16 +475,25 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     // `STAMP_CONFIRM` frames in a row confirm the jump.
     let s = 1_000_000_000u64;
     let mut c = FrameClock::default();
-    assert!(c.admit(10 * s, s) && c.admit(9 * s, s) && c.admit(11 * s, s));
-    assert!(!c.admit(100 * s, s), "one frame 89 s ahead");
-    assert!(c.admit(11 * s + 20_000_000, s), "the real clock goes on");
+    assert!([10 * s, 9 * s, 11 * s].iter().all(|&t| c.admit(t, s) == Some(0)));
+    assert_eq!(c.admit(100 * s, s), None, "one frame 89 s ahead");
+    assert_eq!(c.admit(11 * s + 20_000_000, s), Some(0), "the real clock goes on");
     for k in 0..STAMP_CONFIRM as u64 {
-        let ok = c.admit(50 * s + k * 20_000_000, s);
-        assert_eq!(ok, k + 1 == STAMP_CONFIRM as u64, "frame {k} of a real jump");
+        let got = c.admit(50 * s + k * 20_000_000, s);
+        let want = (k + 1 == STAMP_CONFIRM as u64).then_some(STAMP_CONFIRM - 1);
+        assert_eq!(got, want, "frame {k} of a real jump");
     }
     assert_eq!(c.newest_ns(), Some(50 * s + (STAMP_CONFIRM as u64 - 1) * 20_000_000));
     // A jump "confirmed" by frames far apart from each other is not.
     let mut c = FrameClock::default();
-    assert!(c.admit(0, s));
-    assert!(!c.admit(10 * s, s) && !c.admit(20 * s, s) && !c.admit(30 * s, s));
+    assert_eq!(c.admit(0, s), Some(0));
+    assert!([10 * s, 20 * s, 30 * s].iter().all(|&t| c.admit(t, s).is_none()));
+
+    // A sensor back after a gap of 2 s: its first frames are refused, then confirmed, and
+    // counted as lost to the gap, not rejected.
+    let (rejected, ahead) = (core.counters.frames_rejected, core.counters.frames_ahead);
+    run(&mut core, 2000, &mut last, false);
+    run(&mut core, 200, &mut last, true);
+    assert_eq!(core.counters.frames_before_jump, (STAMP_CONFIRM - 1) as u64);
+    assert_eq!((core.counters.frames_rejected, core.counters.frames_ahead), (rejected, ahead));
 }
