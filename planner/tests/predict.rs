@@ -439,23 +439,22 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     let tracks = core.predictor().n_tracks();
     assert!(tracks >= 4, "{tracks}");
     let before = core.counters;
-    // 1000 s ahead, frame and item alike.
-    let mut bad = last;
-    bad.count = 1;
-    bad.header.stamp_ns += 1_000_000_000_000;
-    bad.items[0].t_meas_ns += 1_000_000_000_000;
-    core.observe_frame(&bad, &l);
+    // One item of the last frame, frame and item stamped `ns` ahead.
+    let ahead = |ns: u64| {
+        let mut f = last;
+        f.count = 1;
+        f.header.stamp_ns += ns;
+        f.items[0].t_meas_ns += ns;
+        f
+    };
+    core.observe_frame(&ahead(1_000_000_000_000), &l);
     assert_eq!(core.counters.frames_ahead, 1);
     assert_eq!(core.counters.frames_rejected, before.frames_rejected + 1);
     assert_eq!(core.predictor().n_tracks(), tracks, "no track aged out at once");
     // 0.9 s ahead, within the track timeout: admitted, its object would be refused as out of
     // order for 0.9 s of real frames (and tracks not seen for 0.1 s aged out): refused too.
     assert!(core.stamp_lead_s() <= 0.25 && core.stamp_lead_s() >= 2.0 / sc.debris.sensor_rate_hz);
-    let mut near = last;
-    near.count = 1;
-    near.header.stamp_ns += 900_000_000;
-    near.items[0].t_meas_ns += 900_000_000;
-    core.observe_frame(&near, &l);
+    core.observe_frame(&ahead(900_000_000), &l);
     assert_eq!(core.counters.frames_ahead, 2);
     assert_eq!(core.predictor().n_tracks(), tracks, "no track aged out");
     // An item measured after its frame was sent.
