@@ -120,11 +120,11 @@ impl ObsCounters {
 /// is more than the track timeout past the track's last pose, so one frame stamped ahead by
 /// nearly that or more (a bad clock, a corrupted message) would age every track out at once,
 /// and the objects it carried would then be refused as out of order until the real clock
-/// caught up. A frame
-/// stamped more than `lead` after the newest admitted one is refused; the clock moves on to it
-/// only when [`STAMP_CONFIRM`] such frames in a row (each within `lead` of the one before)
-/// say so: a sensor back after an outage, not one bad stamp. Stamps at or behind the newest
-/// are admitted (their items are gated per track as out of order where they are).
+/// caught up. A frame stamped more than `lead` after the newest admitted one is refused; the
+/// clock moves on to it only when [`STAMP_CONFIRM`] such frames in a row (each within `lead`
+/// of the one before) say so: a sensor back after an outage, not one bad stamp. Stamps at or
+/// behind the newest are admitted (their items are gated per track as out of order where
+/// they are). The first frame's stamp is taken as it comes.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FrameClock {
     newest_ns: Option<u64>,
