@@ -466,6 +466,7 @@ impl PredictorCore {
                 self.newest_t = self.newest_t.max(frame.header.stamp_ns as f64 * 1e-9);
             }
         }
+        let mut accepted = false;
         for (i, it) in frame.items[..frame.count as usize].iter().enumerate() {
             self.counters.items += 1;
             // Measured after the frame that carries it was sent: a bad stamp, ahead of the
@@ -493,10 +494,17 @@ impl PredictorCore {
             match self.pred.observe(&o) {
                 ObserveOutcome::Rejected(_) => self.counters.items_gated += 1,
                 _ => {
+                    accepted = true;
                     self.newest_t = self.newest_t.max(t);
                     self.set_shape(it.id, it.bounding_radius, it.shape);
                 }
             }
+        }
+        if !accepted {
+            // The predictor drops tracks by the newest time its poses bring; a frame that
+            // brings none (nothing seen, or nothing it could read) says the sensor looked
+            // then: tracks it has not shown for the timeout go (its stamp was checked).
+            self.pred.prune(frame.header.stamp_ns as f64 * 1e-9);
         }
     }
 

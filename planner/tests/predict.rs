@@ -496,3 +496,43 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     assert_eq!(core.counters.frames_before_jump, (STAMP_CONFIRM - 1) as u64);
     assert_eq!((core.counters.frames_rejected, core.counters.frames_ahead), (rejected, ahead));
 }
+
+/// A track whose object the frames stop showing is dropped at the track timeout even when no
+/// other object is seen (the frames, not only the poses, move the predictor's clock): on the
+/// pose sensor's empty frames and on depth frames showing nothing.
+#[test]
+fn a_track_goes_at_the_timeout_when_nothing_at_all_is_seen_any_more() {
+    let sc = scenario("sparse-slow", "constant-velocity");
+    let mut core = PredictorCore::new(fit_models(&sc).unwrap(), &sc);
+    let l = lim();
+    let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+    let mut frame = <DebrisObservation as Zeroed>::zeroed();
+    let mut last = frame;
+    for _ in 0..1000 {
+        side.step(1e-3);
+        side.drain_observations::<()>(&mut frame, |f| {
+            core.observe_frame(f, &l);
+            last = *f;
+            Ok(())
+        })
+        .unwrap();
+    }
+    let tracks = core.predictor().n_tracks();
+    assert!(tracks >= 4, "{tracks}");
+    // Then empty frames every 20 ms: the sky is empty from here.
+    let mut empty = <DebrisObservation as Zeroed>::zeroed();
+    let t_last = last.header.stamp_ns;
+    let mut left = Vec::new();
+    for k in 1..=100u64 {
+        empty.header.stamp_ns = t_last + k * 20_000_000;
+        core.observe_frame(&empty, &l);
+        left.push((k as f64 * 0.02, core.predictor().n_tracks()));
+    }
+    // The poses were measured up to the sensor's latency (30–40 ms) before the last frame.
+    let gone = left.iter().find(|x| x.1 == 0).map(|x| x.0);
+    assert!(gone.is_some_and(|g| (0.9..1.05).contains(&g)), "all gone after {gone:?} s: {left:?}");
+    assert!(left.iter().filter(|x| x.0 < 0.9).all(|x| x.1 == tracks), "none before the timeout");
+    let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+    let n = core.forecast_into(&mut msg);
+    assert!(n == 0 && core.publishable(n), "an empty forecast, to publish: the sky is empty");
+}
