@@ -498,8 +498,9 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
 }
 
 /// A track whose object the frames stop showing is dropped at the track timeout even when no
-/// other object is seen (the frames, not only the poses, move the predictor's clock): on the
-/// pose sensor's empty frames and on depth frames showing nothing.
+/// other object is seen (the frames, not only the poses, move the predictor's clock): the pose
+/// sensor's empty frames here; the depth input's frames go through the same
+/// `PredictorCore::observe_items`.
 #[test]
 fn a_track_goes_at_the_timeout_when_nothing_at_all_is_seen_any_more() {
     let sc = scenario("sparse-slow", "constant-velocity");
