@@ -82,16 +82,23 @@ pub fn check_model_files(sc: &Scenario) -> Result<(), String> {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct ObsCounters {
     /// Frames received / rejected as a whole (bad `count`, a bad depth image, or a stamp
-    /// far ahead of the frames before: `frames_ahead`).
+    /// far ahead of the frames before or far behind them: `frames_ahead`, `frames_behind`).
     pub frames: u64,
     pub frames_rejected: u64,
     /// Of `frames_rejected`: frames stamped too far after the newest frame so far
     /// ([`PredictorCore::stamp_lead_s`]), not (yet) confirmed by the frames after them
     /// ([`FrameClock`]).
     pub frames_ahead: u64,
-    /// Frames refused as stamped too far ahead that the frames after them then confirmed (a
-    /// sensor back after a gap): lost, not rejected (not in `frames_rejected`).
+    /// Of `frames_rejected`: frames stamped too far before the newest frame so far, not (yet)
+    /// confirmed by the frames after them.
+    pub frames_behind: u64,
+    /// Frames refused as stamped too far ahead (or behind) that the frames after them then
+    /// confirmed (a sensor back after a gap; the frames after a first frame stamped wrong):
+    /// lost, not rejected (not in `frames_rejected`).
     pub frames_before_jump: u64,
+    /// Jumps of the frames' clock back (confirmed): the tracks with poses after the new clock
+    /// were dropped (their stamps were the wrong ones).
+    pub clock_jumps_back: u64,
     /// Frames lost on the bus before the predictor read them (gaps in the publisher's
     /// sequence numbers; 0 in process).
     pub frames_lost: u64,
@@ -120,18 +127,21 @@ impl ObsCounters {
 /// is more than the track timeout past the track's last pose, so one frame stamped ahead by
 /// nearly that or more (a bad clock, a corrupted message) would age every track out at once,
 /// and the objects it carried would then be refused as out of order until the real clock
-/// caught up. A frame stamped more than `lead` after the newest admitted one is refused; the
-/// clock moves on to it only when [`STAMP_CONFIRM`] such frames in a row (each within `lead`
-/// of the one before) say so: a sensor back after an outage, not one bad stamp. Stamps at or
-/// behind the newest are admitted (their items are gated per track as out of order where
-/// they are). The first frame's stamp is taken as it comes.
+/// caught up. A frame stamped more than `lead` after the newest admitted one, or more than
+/// `lead` before it, is refused; the clock moves on to it only when [`STAMP_CONFIRM`] such
+/// frames in a row (each within `lead` of the one before) say so: a sensor back after an
+/// outage, or the frames after a first frame that was stamped wrong (the first frame's stamp
+/// has nothing to be checked against), not one bad stamp. Stamps within `lead` of the newest
+/// are admitted (their items are gated per track as out of order where they are).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FrameClock {
     newest_ns: Option<u64>,
-    ahead: Option<(u64, u32)>,
+    /// The refused frames in a row that would confirm a jump: the last one's stamp, how many
+    /// stamps, and how many frames (a camera rig's faces share their capture's stamp).
+    jump: Option<(u64, u32, u32)>,
 }
 
-/// [`FrameClock`]: frames in a row that confirm a jump of the clock.
+/// [`FrameClock`]: frames in a row (of distinct stamps) that confirm a jump of the clock.
 pub const STAMP_CONFIRM: u32 = 3;
 
 /// [`PredictorCore::stamp_lead_s`]: the share of the track timeout a frame may be stamped
@@ -141,27 +151,32 @@ pub const STAMP_LEAD_SHARE: f64 = 0.25;
 
 impl FrameClock {
     /// Whether a frame stamped `stamp_ns` is admitted, with `lead_ns` the largest step ahead
-    /// taken without confirmation: `None` refused; `Some(k)` admitted, `k` the frames refused
-    /// just before it that it confirms (0 but for the frame that confirms a jump).
+    /// (or back) taken without confirmation: `None` refused; `Some(k)` admitted, `k` the
+    /// frames refused just before it that it confirms (0 but for the frame that confirms a
+    /// jump; a jump back leaves [`FrameClock::newest_ns`] lower than before).
     pub fn admit(&mut self, stamp_ns: u64, lead_ns: u64) -> Option<u32> {
         let Some(newest) = self.newest_ns else {
             self.newest_ns = Some(stamp_ns);
             return Some(0);
         };
-        if stamp_ns <= newest.saturating_add(lead_ns) {
+        if stamp_ns <= newest.saturating_add(lead_ns) && stamp_ns >= newest.saturating_sub(lead_ns) {
             self.newest_ns = Some(newest.max(stamp_ns));
-            self.ahead = None;
+            self.jump = None;
             return Some(0);
         }
-        let n = match self.ahead {
-            Some((prev, n)) if stamp_ns >= prev && stamp_ns - prev <= lead_ns => n + 1,
-            _ => 1,
+        // A chain of steps of at most `lead` cannot cross the admitted window (`2·lead`
+        // wide): its frames all lie ahead of the newest, or all behind it.
+        // Another frame of the same capture confirms nothing.
+        let (n, frames) = match self.jump {
+            Some((prev, n, f)) if stamp_ns == prev => (n, f + 1),
+            Some((prev, n, f)) if stamp_ns > prev && stamp_ns - prev <= lead_ns => (n + 1, f + 1),
+            _ => (1, 1),
         };
         if n >= STAMP_CONFIRM {
-            (self.newest_ns, self.ahead) = (Some(stamp_ns), None);
-            Some(n - 1)
+            (self.newest_ns, self.jump) = (Some(stamp_ns), None);
+            Some(frames - 1)
         } else {
-            self.ahead = Some((stamp_ns, n));
+            self.jump = Some((stamp_ns, n, frames));
             None
         }
     }
@@ -636,21 +651,40 @@ impl PredictorCore {
     }
 
     /// [`FrameClock::admit`] with [`PredictorCore::stamp_lead_s`]; a refused frame is counted
-    /// (`frames_rejected`, `frames_ahead`), and moved to `frames_before_jump` when the frames
-    /// after it confirm the jump.
+    /// (`frames_rejected`, and `frames_ahead` or `frames_behind`), and moved to
+    /// `frames_before_jump` when the frames after it confirm the jump. After a jump back, the
+    /// tracks with poses after the new clock are dropped (their times came with the wrong
+    /// stamps, and their objects' poses would be refused as out of order until the clock
+    /// caught up with them), and the forecast schedule starts again from the new clock.
     fn admit_stamp(&mut self, stamp_ns: u64) -> bool {
         let lead_ns = (self.stamp_lead_s() * 1e9) as u64;
+        let before = self.clock.newest_ns();
+        let behind = before.is_some_and(|b| stamp_ns < b);
         let c = &mut self.counters;
         match self.clock.admit(stamp_ns, lead_ns) {
+            Some(0) => true,
             Some(k) => {
                 let k = k as u64;
-                (c.frames_rejected, c.frames_ahead) = (c.frames_rejected - k, c.frames_ahead - k);
+                c.frames_rejected -= k;
+                if behind {
+                    c.frames_behind -= k;
+                    c.clock_jumps_back += 1;
+                    let t = stamp_ns as f64 * 1e-9;
+                    self.pred.drop_after(t);
+                    (self.newest_t, self.next_due_s) = (t, 0.0);
+                } else {
+                    c.frames_ahead -= k;
+                }
                 c.frames_before_jump += k;
                 true
             }
             None => {
                 c.frames_rejected += 1;
-                c.frames_ahead += 1;
+                if behind {
+                    c.frames_behind += 1;
+                } else {
+                    c.frames_ahead += 1;
+                }
                 false
             }
         }

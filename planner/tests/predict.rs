@@ -497,6 +497,68 @@ fn a_frame_stamped_far_ahead_is_refused_and_loses_no_track() {
     assert_eq!((core.counters.frames_rejected, core.counters.frames_ahead), (rejected, ahead));
 }
 
+/// The first frame's stamp has nothing to be checked against: one stamped 1000 s ahead (with
+/// its items) would have made every later frame look 1000 s old, its objects' poses refused
+/// as out of order for 1000 s and the check of stamps ahead blind. The frames after it
+/// outvote it (`STAMP_CONFIRM` in a row), the tracks it made are dropped, and the run goes on
+/// as a clean one: the same objects tracked, nothing refused as out of order, forecasts on
+/// the real clock. The clock alone: frames far behind are refused until confirmed; the faces
+/// of one capture (one stamp) confirm nothing.
+#[test]
+fn a_first_frame_stamped_wrong_is_outvoted_by_the_frames_after_it() {
+    use dkrrt_planner::predict::{FrameClock, STAMP_CONFIRM};
+    let mut sc = scenario("sparse-slow", "constant-velocity");
+    sc.debris.latency_jitter_s = 0.0;
+    sc.debris.dropout = 0.0;
+    let models = fit_models(&sc).unwrap();
+    let l = lim();
+    let run = |first_ahead_ns: u64| {
+        let mut core = PredictorCore::new(models.clone(), &sc);
+        let mut side = DebrisSide::new(&sc, &dkrrt_model::ArmModel::default_arm()).unwrap();
+        let (mut frame, mut first, mut t) = (<DebrisObservation as Zeroed>::zeroed(), true, 0);
+        for _ in 0..2000 {
+            side.step(1e-3);
+            side.drain_observations::<()>(&mut frame, |f| {
+                let mut f = *f;
+                if std::mem::take(&mut first) {
+                    f.header.stamp_ns += first_ahead_ns;
+                    f.items[..f.count as usize].iter_mut().for_each(|it| it.t_meas_ns += first_ahead_ns);
+                }
+                t = f.header.stamp_ns;
+                core.observe_frame(&f, &l);
+                Ok(())
+            })
+            .unwrap();
+        }
+        let mut msg = Box::new(<DebrisForecast as Zeroed>::zeroed());
+        let n = core.forecast_into(&mut msg);
+        (core, n, msg.t0_ns as i64 - t as i64)
+    };
+    let (clean, n_clean, _) = run(0);
+    let (core, n, lag_ns) = run(1_000_000_000_000);
+    assert!(n_clean >= 4 && n == n_clean, "{n} tracks forecast, {n_clean} in the clean run");
+    let c = core.counters;
+    assert_eq!((c.clock_jumps_back, c.frames_before_jump), (1, (STAMP_CONFIRM - 1) as u64), "{c:?}");
+    assert_eq!((c.frames_rejected, c.frames_behind, c.frames_ahead), (0, 0, 0), "{c:?}");
+    assert_eq!(core.gate().out_of_order, 0, "{:?}", core.gate());
+    assert!(core.gate().tracks_dropped >= 1, "the first frame's tracks: {:?}", core.gate());
+    assert!(lag_ns.abs() < 200_000_000, "forecast t0 {lag_ns} ns from the last frame");
+    assert_eq!(clean.counters.clock_jumps_back, 0);
+
+    let s = 1_000_000_000u64;
+    let mut c = FrameClock::default();
+    assert_eq!(c.admit(1000 * s, s), Some(0), "the first frame: nothing to check it against");
+    assert_eq!(c.admit(2 * s, s), None, "998 s behind");
+    assert_eq!(c.admit(2 * s, s), None, "a second frame of the same capture");
+    assert_eq!(c.admit(2 * s, s), None, "and a third: still one stamp");
+    assert_eq!(c.admit(2 * s + 50_000_000, s), None);
+    assert_eq!(c.admit(2 * s + 100_000_000, s), Some(4), "three stamps in a row: 4 frames confirmed");
+    assert_eq!(c.newest_ns(), Some(2 * s + 100_000_000));
+    assert_eq!(c.admit(s + 200_000_000, s), Some(0), "within the lead behind: admitted");
+    assert_eq!(c.admit(0, s), None, "one frame far behind");
+    assert_eq!(c.admit(2 * s + 150_000_000, s), Some(0), "the real clock goes on");
+}
+
 /// A track whose object the frames stop showing is dropped at the track timeout even when no
 /// other object is seen (the frames, not only the poses, move the predictor's clock): the pose
 /// sensor's empty frames here; the depth input's frames go through the same

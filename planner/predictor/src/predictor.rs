@@ -622,6 +622,21 @@ impl DebrisPredictor {
         n
     }
 
+    /// Drops the tracks whose last pose is after `t` (the frames' clock went back: their
+    /// times came with wrong stamps); they are counted as dropped, and their slots are free
+    /// (not revived: a pose at `t` or later is not after theirs). Returns how many.
+    pub fn drop_after(&mut self, t: f64) -> usize {
+        let mut n = 0;
+        for tr in self.tracks.iter_mut() {
+            if tr.active && tr.filter.t > t {
+                tr.active = false;
+                n += 1;
+            }
+        }
+        self.stats.tracks_dropped += n as u64;
+        n
+    }
+
     /// A slot for a new track: the first inactive one; with revival on, one whose track can no
     /// longer be revived, if any.
     fn free_slot(&self, t: f64) -> Option<usize> {
