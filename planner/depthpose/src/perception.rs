@@ -4,8 +4,10 @@
 //!
 //! Per instance, the [`Extractor`]'s centroid and principal axes, then per object id:
 //! * **Class**, from the largest spread seen per principal axis so far (a tumbling object
-//!   shows its sides in turn; one view can hide an extent), in its whole views once it has
-//!   one (a view cut by the frame or hidden in part shows a part, and a part can spread
+//!   shows its sides in turn; one view can hide an extent), in its views of at least
+//!   [`SHAPE_POINTS`] pixels once it has one (a far view's few points spread mostly by the
+//!   depth noise), in its whole views once it has one (a view cut by the frame or hidden in
+//!   part shows a part, and a part can spread
 //!   wider than the whole: a panel's two ends with the arm across its middle): a **rod** when the first spread
 //!   is over 3 times the second, a **panel** when the third is under a fifth of the second
 //!   (a **disc** when its second is at least [`ROUND`] of its first: a square panel, whose
@@ -145,6 +147,14 @@ pub const PART: f64 = 0.75;
 /// object's spreads (9 cm for a 1 m half extent).
 pub const WHOLE: f64 = 0.9;
 
+/// A view of fewer valid pixels than this tells little of the object's extent: a far one's
+/// few points spread by the depth noise (σ 15 cm at 10 m on the default camera, more than
+/// taking its expected share out leaves reliable with 2–4 points) and by a pixel's span. Its
+/// spreads count only while no view of the object had this many; the first that does
+/// replaces them (a 0.4 m box seen with 2–4 pixels at 10 m spread 0.34 m, and its views at 5 m,
+/// 15–24 pixels, then looked like parts of it and went unreported for 1.3 s).
+pub const SHAPE_POINTS: usize = 8;
+
 /// Objects remembered (the oldest seen is forgotten first).
 pub const MAX_KNOWN: usize = 128;
 
@@ -153,6 +163,8 @@ struct Known {
     id: u32,
     /// Largest spread seen along each principal axis (by rank), m.
     spread: [f64; 3],
+    /// The most valid pixels of a view those spreads were taken from.
+    points: usize,
     q: [f64; 4],
     /// Views the learned model read, and those that showed a long / a short axis.
     votes: [u32; 3],
@@ -409,12 +421,21 @@ impl DepthPerception {
                 }
                 if !kn.whole_seen {
                     // The first whole view replaces what the parts before it spread.
-                    (kn.spread, kn.whole_seen) = ([0.0; 3], true);
+                    (kn.spread, kn.points, kn.whole_seen) = ([0.0; 3], 0, true);
                 }
             }
             if !hidden || !kn.whole_seen {
-                for i in 0..3 {
-                    kn.spread[i] = kn.spread[i].max(e.spread[i]);
+                // Views of a few pixels count only until one of `SHAPE_POINTS` is seen, which
+                // replaces what they spread.
+                let told = e.points >= SHAPE_POINTS;
+                if told && kn.points < SHAPE_POINTS {
+                    kn.spread = [0.0; 3];
+                }
+                if told || kn.points < SHAPE_POINTS {
+                    for i in 0..3 {
+                        kn.spread[i] = kn.spread[i].max(e.spread[i]);
+                    }
+                    kn.points = kn.points.max(e.points);
                 }
             }
             kn.last_frame = frame;
@@ -562,6 +583,7 @@ impl DepthPerception {
         let fresh = Known {
             id,
             spread: [0.0; 3],
+            points: 0,
             q: [1.0, 0.0, 0.0, 0.0],
             votes: [0; 3],
             last_frame: 0,
