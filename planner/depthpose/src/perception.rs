@@ -148,10 +148,10 @@ pub const PART: f64 = 0.75;
 pub const WHOLE: f64 = 0.9;
 
 /// A view of fewer valid pixels than this tells little of the object's extent: a far one's
-/// few points spread by the depth noise (σ 15 cm at 10 m on the default camera, more than
-/// taking its expected share out leaves reliable with 2–4 points) and by a pixel's span. Its
-/// spreads count only while no view of the object had this many; the first that does
-/// replaces them (a 0.4 m box seen with 2–4 pixels at 10 m spread 0.34 m, and its views at 5 m,
+/// few points spread by the depth noise (σ 15 cm at 10 m on the default camera; with 2–4
+/// points the noise's share of their spread is far from its expected value, which is what
+/// the extractor takes out) and by a pixel's span. Its spreads count only while no view of
+/// the object had this many; the first that does replaces them (a 0.4 m box seen with 2–4 pixels at 10 m spread 0.34 m, and its views at 5 m,
 /// 15–24 pixels, then looked like parts of it and went unreported for 1.3 s).
 pub const SHAPE_POINTS: usize = 8;
 
