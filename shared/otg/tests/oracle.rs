@@ -476,7 +476,7 @@ fn ruckig_suite_draws_match_the_oracle() {
         for i in 0..n {
             let (mut s, mut t) = (KinState::<3>::default(), KinState::<3>::default());
             let mut l = Limits { v_max: [0.0; 3], a_max: [0.0; 3], j_max: [0.0; 3] };
-            let mut some =
+            let some =
                 |rng: &mut SmallRng, p: f64| if rng.random::<f64>() < p { normal(rng, 0.8) } else { 0.0 };
             for j in 0..3 {
                 if kind == 0 {
