@@ -18,7 +18,7 @@ use std::path::Path;
 use dkrrt_config::{Mode, Scenario};
 use dkrrt_msg::bus::{Bus, HeartbeatTx};
 use dkrrt_msg::*;
-use dkrrt_rrt::{Summary, TrackerView};
+use dkrrt_rrt::{Replanner, Summary, TrackerView};
 
 use crate::goal_cli::{take_goal, GoalRequest};
 use crate::replan::replanner;
@@ -162,11 +162,7 @@ pub fn run(
             ProcessState::Running,
             core.stats.cycles,
             core.stats.deadline_misses,
-            state_sub.rejected
-                + cmd_sub.rejected
-                + fc_sub.rejected
-                + goal_sub.rejected
-                + core.stats.forecasts_ahead,
+            rejected(&[state_sub.rejected, cmd_sub.rejected, fc_sub.rejected, goal_sub.rejected], &core),
             core.stats.fallbacks.brake,
         )
         .map_err(|e| e.to_string())?;
@@ -191,11 +187,10 @@ pub fn run(
     let rep = PlannerReport {
         summary: core.summary(&sc.planner.method),
         forecasts_received: forecasts,
-        rejected: state_sub.rejected
-            + cmd_sub.rejected
-            + fc_sub.rejected
-            + goal_sub.rejected
-            + core.stats.forecasts_ahead,
+        rejected: rejected(
+            &[state_sub.rejected, cmd_sub.rejected, fc_sub.rejected, goal_sub.rejected],
+            &core,
+        ),
         pose_goals_unreachable,
         stopped_by_signal,
     };
@@ -205,4 +200,10 @@ pub fn run(
             .map_err(|e| format!("planner: --trace {}: {e}", p.display()))?;
     }
     Ok(rep)
+}
+
+/// Messages the planner refused: those its subscribers' contract checks rejected (`subs`), and
+/// forecasts stamped ahead of the plant clock (`forecasts_ahead`).
+fn rejected(subs: &[u64], core: &Replanner) -> u64 {
+    subs.iter().sum::<u64>() + core.stats.forecasts_ahead
 }
