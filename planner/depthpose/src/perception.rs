@@ -24,8 +24,7 @@
 //! * **Attitude**: a rod's body z is its axis, turned from the last attitude by the smallest
 //!   rotation (the spin about the axis is not observable, so it is not made up; it is
 //!   flagged [`DEBRIS_AXIS_ONLY`]: that spin drifts as the axis turns, and so is no
-//!   measurement); a disc's body z is its normal, likewise (a view edge-on, which does not
-//!   tell the normal, is not reported); a panel's
+//!   measurement); a disc's body z is its normal, likewise; a panel's
 //!   body axes are its principal axes, their signs chosen nearest to the last attitude; a
 //!   bulky object's attitude is held (a sphere's attitude does not matter for contact, and
 //!   a noisy one would trip the predictor's attitude gate).
@@ -40,15 +39,18 @@
 //!   centre, and the predictor took the jumps between its visible parts for a velocity of
 //!   0.5–1.7 m/s): when no camera of the capture shows the object whole, it is reported
 //!   with the next capture, flagged
-//!   [`DEBRIS_PARTIAL`] (located from all the capture's views of it: **Rigs** below; its axis
-//!   from the view with the most pixels), with the shape and attitude last seen whole, except
-//!   a rod's axis and a disc's normal where the visible part defines them (a cut or
-//!   half-hidden rod still shows its direction, a panel its plane): then it is also flagged
-//!   [`DEBRIS_AXIS_ONLY`]. The predictor takes its position loosely and its attitude only
-//!   with that flag, so an object that straddles two cameras of a rig, or the edge of a
-//!   single camera's view, is still tracked. A view hidden in part behind something nearer
-//!   (its outline touches a nearer object or the arm: [`crate::PoseEstimate::occluded`]) is
-//!   treated as a cut one.
+//!   [`DEBRIS_PARTIAL`] (located from all the capture's views of it: **Rigs** below), with
+//!   the shape and attitude last seen whole, except a rod's axis and a disc's normal where
+//!   the visible parts define them (a cut or half-hidden rod still shows its direction, a
+//!   panel its plane; taken from all the capture's views of it, else from the view with the
+//!   most pixels): then it is also flagged [`DEBRIS_AXIS_ONLY`]. The predictor takes its
+//!   position loosely and its attitude only with that flag, so an object that straddles two
+//!   cameras of a rig, or the edge of a single camera's view, is still tracked. A view
+//!   hidden in part behind something nearer (its outline touches a nearer object or the arm:
+//!   [`crate::PoseEstimate::occluded`]) is treated as a cut one, and so is a planar object's
+//!   view **edge-on** (its second spread under [`EDGE_ON`] of its plane's): a line, which
+//!   shows neither the plane's extent nor its normal (as a panel's first whole view it made
+//!   the panel a rod 1 cm thick).
 //! * **Restarts**: the largest spread seen grows as the object turns; a view whose longest
 //!   spread is over 1/[`PART`] of the longest seen before (a rod seen end-on at first, its
 //!   near end taken for its centre, then broadside) shows that the earlier reports were of
@@ -140,6 +142,13 @@ pub const ERROR_MARGIN_M: f64 = 0.15;
 /// A view whose longest spread is under this share of the longest seen shows the object in
 /// part (cut by the frame, hidden in part, or end-on): its centre would be off.
 pub const PART: f64 = 0.75;
+
+/// A view of a planar object (a panel, a disc) whose second spread is under this share of
+/// the plane's shows it edge-on: a line, which tells neither the plane's extent nor its normal
+/// (the normal of a line is any direction about it). Before the object's first whole view the
+/// plane's spread is its parts' largest, which a part can exceed by up to √2 (a strip along a
+/// square's diagonal); it is taken down by that much.
+pub const EDGE_ON: f64 = 0.35;
 
 /// A view cut by the image border is still whole enough when its two largest spreads are at
 /// least this share of the largest seen: cutting `c` off an extent moves the centroid by `c/2`
@@ -326,6 +335,25 @@ pub fn shape_of(c: Class, s: &[f64; 3]) -> (DebrisShape, f64) {
     }
 }
 
+/// The body z axis of a rod (its length) or a disc (its normal) in the view `e` of the object
+/// `kn`, where the view's points define it (a disc's: not edge-on, [`EDGE_ON`]; `None` for
+/// other shapes).
+fn seen_axis(shape: &DebrisShape, e: &PoseEstimate, kn: &Known) -> Option<[f64; 3]> {
+    match ShapeKind::from_u32(shape.kind) {
+        Some(ShapeKind::Capsule) if e.spread[0] > PCA_DEFINED * e.spread[1] => Some(e.axes[0]),
+        Some(ShapeKind::Disc) if e.spread[1] > PCA_DEFINED * e.spread[2] && !edge_on(e, kn) => {
+            Some(e.axes[2])
+        }
+        _ => None,
+    }
+}
+
+/// Whether the view `e` shows the object `kn`, known to be planar, edge-on ([`EDGE_ON`]).
+fn edge_on(e: &PoseEstimate, kn: &Known) -> bool {
+    let plane = if kn.whole_seen { kn.spread[1] } else { kn.spread[1] / std::f64::consts::SQRT_2 };
+    matches!(classify(&kn.spread), Class::Panel | Class::Disc) && e.spread[1] < EDGE_ON * plane
+}
+
 /// Whether a report of `shape` measures only its body z axis ([`DEBRIS_AXIS_ONLY`]): a rod's
 /// (a capsule) or a disc's.
 fn axis_only(shape: &DebrisShape) -> bool {
@@ -381,6 +409,13 @@ impl DepthPerception {
                 let Fused { moments, stamp_ns, origin } = &kn.fused;
                 if let Some(f) = moments.estimate(origin).filter(|_| *stamp_ns == o.t_meas_ns) {
                     o.p = visible_centre(&f, origin, kn.class());
+                    // Its axis too, where the parts together define it: a face's part of a
+                    // panel cut by its border can be a strip a few pixels wide, whose normal
+                    // tilts freely about its length with the depth noise.
+                    if let Some(a) = seen_axis(&o.shape, &f, kn) {
+                        o.q = align(&o.q, 2, &a);
+                        o.flags |= DEBRIS_AXIS_ONLY;
+                    }
                 }
                 out.items[count] = o;
                 count += 1;
@@ -412,7 +447,7 @@ impl DepthPerception {
             // A view cut by the frame or hidden in part shows a part, and a part can spread
             // wider than the whole (a panel's two ends with the arm across its middle): the
             // spreads its views are measured against are the whole views' once it has one.
-            let hidden = e.cut > 0 || e.occluded > 0;
+            let hidden = e.cut > 0 || e.occluded > 0 || edge_on(&e, kn);
             if !hidden {
                 // Larger than every view reported so far would have let through: those showed
                 // it in part (module docs).
@@ -464,15 +499,7 @@ impl DepthPerception {
                     // A rod cut or hidden in part still shows its direction, a disc its
                     // normal: from the visible part, where that defines it (module docs);
                     // otherwise the report carries no attitude.
-                    let seen = match ShapeKind::from_u32(shape.kind) {
-                        Some(ShapeKind::Capsule) if e.spread[0] > PCA_DEFINED * e.spread[1] => {
-                            Some(align(&kn.q, 2, &e.axes[0]))
-                        }
-                        Some(ShapeKind::Disc) if e.spread[1] > PCA_DEFINED * e.spread[2] => {
-                            Some(align(&kn.q, 2, &e.axes[2]))
-                        }
-                        _ => None,
-                    };
+                    let seen = seen_axis(&shape, &e, kn).map(|a| align(&kn.q, 2, &a));
                     let flags = DEBRIS_PARTIAL | if seen.is_some() { DEBRIS_AXIS_ONLY } else { 0 };
                     let q = seen.unwrap_or(kn.q);
                     let o = item(id, flags, img.header.stamp_ns, p, q, (shape, radius));
