@@ -8,12 +8,15 @@
 //! erratic, `I_z ≪ I_x`, and it is what makes a full-attitude forecast of a rod poor). The
 //! spin does not change a capsule's shape, so the axis is all a planner needs.
 //!
-//! [`AxisPrecession`] estimates `Ω` by exponentially weighted least squares over the filtered
+//! [`AxisPrecession`] estimates `Ω` by exponentially weighted least squares over the sampled
 //! axis directions: each sample contributes `P_z Ω = z × ż` (`P_z = I − z zᵀ`: the component
 //! of `Ω` along `z` is invisible at one instant, the axis's motion around its cone fixes it),
 //! with `ż` from chords of the axis over a fixed lag and a small ridge toward the filter's
-//! instantaneous rate. The forecast turns the current axis about `Ω` (Rodrigues). Nothing
-//! here allocates.
+//! instantaneous rate. The forecast turns the current axis about `Ω` (Rodrigues). `Ω` is
+//! fitted to the filter's axes, the current axis is the measured ones averaged
+//! ([`AxisPrecession::smoothed`]: the filter's attitude trails a coning axis, a spinning
+//! disc's normal, by a tenth of a radian), and no chord spans a gap in which the axis may
+//! have turned far ([`AxisPrecession::MAX_CHORD`]). Nothing here allocates.
 //!
 //! The bound on this forecast's error is calibrated online per track ([`AxisPrecession`]
 //! keeps its own past forecasts and scores them when the horizon has passed).
@@ -35,6 +38,8 @@ pub struct AxisPrecession {
     pub z: [f64; 3],
     ring_t: [f64; RING],
     ring_z: [[f64; 3]; RING],
+    /// The measured axes of the same samples.
+    ring_seen: [[f64; 3]; RING],
     head: usize,
     len: usize,
     /// Samples absorbed.
@@ -91,6 +96,18 @@ impl AxisPrecession {
     pub const LAG: f64 = 0.15;
     /// Ridge toward the filter's instantaneous rate (relative weight).
     pub const RIDGE: f64 = 1e-3;
+    /// Longest chord, s, unless the estimated rate turns the axis by at most
+    /// [`AxisPrecession::MAX_TURN`] over it: over a gap between samples (an object unseen or its
+    /// attitude unmeasured for a while) a fast tumbler's axis may have turned by any angle, a
+    /// full turn or more, and a chord across it says nothing of its rate; a slow one's chord
+    /// still does. After a gap too long the chords start again from the samples after it
+    /// (the least squares keep what came before, decaying).
+    pub const MAX_CHORD: f64 = 4.0 * Self::LAG;
+    /// Largest turn of the axis over a chord longer than [`AxisPrecession::MAX_CHORD`], rad
+    /// (the chord's rate is then within 1 % of the rate at its middle).
+    pub const MAX_TURN: f64 = 0.5;
+    /// The samples averaged into the current axis are at most this old, s.
+    pub const SMOOTH: f64 = 2.0 * Self::LAG;
 
     pub fn new() -> Self {
         AxisPrecession {
@@ -100,6 +117,7 @@ impl AxisPrecession {
             z: [0.0, 0.0, 1.0],
             ring_t: [f64::NAN; RING],
             ring_z: [[0.0; 3]; RING],
+            ring_seen: [[0.0; 3]; RING],
             head: 0,
             len: 0,
             n: 0,
@@ -107,13 +125,21 @@ impl AxisPrecession {
         }
     }
 
-    /// Absorbs a filtered attitude `q` (body → frame) at time `t` with the filter's body rate
-    /// `w_body` (used only as the ridge's prior). Samples not newer than the last are ignored.
-    pub fn update(&mut self, t: f64, q: &[f64], w_body: &[f64]) {
+    /// Absorbs a filtered attitude `q` (body → frame) at time `t`, the measured one `seen`
+    /// and the filter's body rate `w_body` (used only as the ridge's prior): the rate is fitted
+    /// to the filtered axes (smooth; a filter's lag shifts them along the cone, which leaves
+    /// the rate as it is), the forecasts start from the measured ones
+    /// ([`AxisPrecession::smoothed`]: a filter trails a coning axis). Samples not newer than
+    /// the last are ignored.
+    pub fn update(&mut self, t: f64, q: &[f64], seen: &[f64], w_body: &[f64]) {
         if !t.is_finite() || (self.t.is_finite() && t <= self.t) {
             return;
         }
         let z = body_z(q);
+        let mut zs = body_z(seen);
+        if zs[0] * z[0] + zs[1] * z[1] + zs[2] * z[2] < 0.0 {
+            zs = zs.map(|c| -c);
+        }
         self.w_rate = quat_rotate(&unit(q), &[w_body[0], w_body[1], w_body[2]]);
         // Chord to the newest ring sample at least LAG old.
         let mut chord = None;
@@ -121,7 +147,11 @@ impl AxisPrecession {
             let i = (self.head + RING - 1 - j) % RING;
             let dt = t - self.ring_t[i];
             if dt >= Self::LAG {
-                chord = Some((dt, self.ring_z[i]));
+                let fits = || {
+                    let w = self.omega();
+                    (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt() * dt <= Self::MAX_TURN
+                };
+                chord = (dt <= Self::MAX_CHORD || fits()).then_some((dt, self.ring_z[i]));
                 break;
             }
         }
@@ -144,10 +174,11 @@ impl AxisPrecession {
         }
         self.ring_t[self.head] = t;
         self.ring_z[self.head] = z;
+        self.ring_seen[self.head] = zs;
         self.head = (self.head + 1) % RING;
         self.len = (self.len + 1).min(RING);
         self.t = t;
-        self.z = z;
+        self.z = zs;
     }
 
     /// The precession vector `Ω` (frame axes), rad/s: the least-squares solution with a ridge
@@ -164,9 +195,35 @@ impl AxisPrecession {
         solve3(&m, &r).unwrap_or(self.w_rate)
     }
 
-    /// The axis `dt` seconds after the newest sample.
+    /// The axis at the newest sample's time, from the samples of the last
+    /// [`AxisPrecession::SMOOTH`] seconds each turned on by `omega` to that time and averaged
+    /// (weights decaying with their age over [`AxisPrecession::LAG`]): a measured axis's noise
+    /// averaged, without the lag of a filter.
+    pub fn smoothed(&self, omega: &[f64; 3]) -> [f64; 3] {
+        let mut m = [0.0; 3];
+        for j in 0..self.len {
+            let i = (self.head + RING - 1 - j) % RING;
+            let age = self.t - self.ring_t[i];
+            if age > Self::SMOOTH {
+                break;
+            }
+            let z = rotate(&omega.map(|w| w * age), &self.ring_seen[i]);
+            // A line: each sample on the newest one's side.
+            let s = if z[0] * self.z[0] + z[1] * self.z[1] + z[2] * self.z[2] < 0.0 { -1.0 } else { 1.0 };
+            let w = s * (-age / Self::LAG).exp();
+            (0..3).for_each(|k| m[k] += w * z[k]);
+        }
+        let n = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+        if n > 1e-9 {
+            m.map(|c| c / n)
+        } else {
+            self.z
+        }
+    }
+
+    /// The axis `dt` seconds after the newest sample ([`AxisPrecession::smoothed`] turned on).
     pub fn axis_at(&self, omega: &[f64; 3], dt: f64) -> [f64; 3] {
-        rotate(&omega.map(|w| w * dt), &self.z)
+        rotate(&omega.map(|w| w * dt), &self.smoothed(omega))
     }
 
     /// The axis at `t0 + k·step`, `k = 1..=out.len()`, with `t0` = the newest sample + `offset`
@@ -223,7 +280,7 @@ use crate::calib::StepScores;
 pub use crate::calib::MAX_STEPS;
 
 /// One track's axis forecast and its online calibration: [`AxisPrecession`] plus its own
-/// forecasts taken every model step `dt`, each scored against the filtered axis when `k`
+/// forecasts taken every model step `dt`, each scored against the measured axis when `k`
 /// steps have passed ([`StepScores`]: per step a decaying maximum of the angles seen; the
 /// bound `k` steps ahead is `floor + factor · max_{j ≤ k} score_j`). Steps not yet scored
 /// since the track began (a young track) have no calibrated bound: the caller falls back to
@@ -265,11 +322,11 @@ impl AxisChannel {
         }
     }
 
-    /// Absorbs a filtered attitude (see [`AxisPrecession::update`]); every `dt` seconds it
+    /// Absorbs a filtered and a measured attitude (see [`AxisPrecession::update`]); every `dt` seconds it
     /// scores its earlier forecasts up to `h` steps old and takes a new one.
-    pub fn update(&mut self, t: f64, q: &[f64], w_body: &[f64], dt: f64, h: usize) {
+    pub fn update(&mut self, t: f64, q: &[f64], seen: &[f64], w_body: &[f64], dt: f64, h: usize) {
         let before = self.prec.t;
-        self.prec.update(t, q, w_body);
+        self.prec.update(t, q, seen, w_body);
         if self.prec.t == before || dt.is_nan() || dt <= 0.0 {
             return;
         }
@@ -293,9 +350,10 @@ impl AxisChannel {
         if self.prec.n < Self::MATURE {
             return;
         }
+        let w = self.prec.omega();
         self.snap_t[self.head] = t;
-        self.snap_z[self.head] = z;
-        self.snap_w[self.head] = self.prec.omega();
+        self.snap_z[self.head] = self.prec.smoothed(&w);
+        self.snap_w[self.head] = w;
         self.head = (self.head + 1) % (MAX_STEPS + 1);
         self.len = (self.len + 1).min(MAX_STEPS + 1);
     }
@@ -344,7 +402,7 @@ mod tests {
         let mut ax = AxisPrecession::new();
         for i in 0..200 {
             let t = i as f64 * 0.02;
-            ax.update(t, &rod(t), &[0.0; 3]);
+            ax.update(t, &rod(t), &rod(t), &[0.0; 3]);
         }
         let o = ax.omega();
         let t_last = 199.0 * 0.02;
@@ -357,6 +415,41 @@ mod tests {
         assert!(line_angle(&body_z(&q), &body_z(&rod(t_last + 2.0))) < 0.01);
     }
 
+    /// Samples resuming after a gap (the object unseen, or its attitude unmeasured, for 3 s,
+    /// in which the axis turned 1.9 rad) make no chord across it: the forecast right after is
+    /// as good as before (with chords across the gap it was 4 times as far off 1 s ahead). A
+    /// slow axis, which the gap turned by less than `MAX_TURN`, keeps its chord across it.
+    #[test]
+    fn no_chord_spans_a_gap_the_axis_turned_far_in() {
+        let run = |rate: f64| {
+            let at = |t: f64| rod(rate * t);
+            let mut ax = AxisPrecession::new();
+            let mut t = 0.0;
+            for i in 0..200 {
+                t = i as f64 * 0.02;
+                ax.update(t, &at(t), &at(t), &[0.0; 3]);
+            }
+            let (t_gap, n_before) = (t + 3.0, ax.n);
+            ax.update(t_gap, &at(t_gap), &at(t_gap), &[0.0; 3]);
+            let chord_across = ax.n > n_before;
+            for i in 1..12 {
+                t = t_gap + i as f64 * 0.02;
+                ax.update(t, &at(t), &at(t), &[0.0; 3]);
+            }
+            let o = ax.omega();
+            let errs = [1.0, 2.0].map(|dt| line_angle(&ax.axis_at(&o, dt), &body_z(&at(t + dt))));
+            (chord_across, errs)
+        };
+        let (across, errs) = run(1.0);
+        assert!(!across);
+        for (dt, err) in [1.0, 2.0].into_iter().zip(errs) {
+            assert!(err < 0.004 * dt + 0.003, "{dt} s after: {err} rad");
+        }
+        // 0.15 × 0.62 rad/s: 0.28 rad in the 3 s.
+        let (across, errs) = run(0.15);
+        assert!(across && errs[1] < 0.005, "{errs:?}");
+    }
+
     #[test]
     fn channel_bound_is_calibrated_online_and_absent_while_young() {
         let (dt, h) = (0.1, 40);
@@ -364,7 +457,7 @@ mod tests {
         let mut seen_young = false;
         for i in 0..500 {
             let t = i as f64 * 0.02;
-            ch.update(t, &rod(t), &[0.0; 3], dt, h);
+            ch.update(t, &rod(t), &rod(t), &[0.0; 3], dt, h);
             if t < 1.0 {
                 assert!(ch.radius(1, 0.02, 1.5).is_none(), "young at {t}");
                 seen_young = true;
@@ -392,7 +485,7 @@ mod tests {
                     rod(t)[2],
                     rod(t)[3],
                 ));
-            ch2.update(t, &[q.w, q.i, q.j, q.k], &[0.0; 3], dt, h);
+            ch2.update(t, &[q.w, q.i, q.j, q.k], &[q.w, q.i, q.j, q.k], &[0.0; 3], dt, h);
         }
         assert!(ch2.radius(40, 0.02, 1.5).unwrap() >= ch2.radius(1, 0.02, 1.5).unwrap());
         // The batch forms agree with the one-step ones.

@@ -694,7 +694,7 @@ impl DebrisPredictor {
         }
         tr.restart_calibration();
         tr.calib_obs = 1;
-        tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
+        tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[QUAT], &tr.filter.x[RATE], m.dt, m.horizon);
         push_hist(tr);
     }
 
@@ -838,7 +838,18 @@ impl DebrisPredictor {
             self.stats.maneuvers += 1;
         }
         if att_measured && self.cfg.attitude_physics.unwrap_or(self.models.method.attitude_physics()) {
-            tr.axis.update(o.t, &tr.filter.x[QUAT], &tr.filter.x[RATE], self.models.dt, self.models.horizon);
+            // The forecasts of the axis start from the measured axes, not the filter's: the
+            // filter's constant body rate does not describe a spinning disc's coning, and its
+            // attitude trailed a tumbling panel's reported normal by 0.1 rad (as did every
+            // forecast started from it).
+            tr.axis.update(
+                o.t,
+                &tr.filter.x[QUAT],
+                &q,
+                &tr.filter.x[RATE],
+                self.models.dt,
+                self.models.horizon,
+            );
             tr.euler.update(
                 o.t,
                 &tr.filter.x[QUAT],
