@@ -322,8 +322,8 @@ impl AxisChannel {
         }
     }
 
-    /// Absorbs a filtered and a measured attitude (see [`AxisPrecession::update`]); every `dt` seconds it
-    /// scores its earlier forecasts up to `h` steps old and takes a new one.
+    /// Absorbs a filtered and a measured attitude (see [`AxisPrecession::update`]); every `dt`
+    /// seconds it scores its earlier forecasts up to `h` steps old and takes a new one.
     pub fn update(&mut self, t: f64, q: &[f64], seen: &[f64], w_body: &[f64], dt: f64, h: usize) {
         let before = self.prec.t;
         self.prec.update(t, q, seen, w_body);
