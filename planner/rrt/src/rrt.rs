@@ -62,6 +62,11 @@ pub struct PlannerConfig {
     pub relief_s: f64,
     /// The deepest predicted clearance a dodge ([`Planner::dodge`]) may have, m.
     pub dodge_depth_m: f64,
+    /// A dodge acts on where the objects most likely are when staying goes `dodge_depth_m`
+    /// deep within this time and the bounds show no way out ([`Planner::dodge`]); a conflict
+    /// further ahead is left to newer forecasts, as the replanning loop's reaction times
+    /// (`ReplanConfig::move_react_s`, `rest_react_s`) leave it, s.
+    pub dodge_react_s: f64,
     /// Configuration checks per `plan` call: a deterministic proxy for compute time (one check
     /// against 32 forecast tracks takes about 1.5 µs on the development VM: the README's
     /// benchmark table, `cargo bench -p dkrrt-rrt --bench rrt`).
@@ -86,6 +91,7 @@ impl Default for PlannerConfig {
             relief_m: 0.02,
             relief_s: 1.0,
             dodge_depth_m: 0.1,
+            dodge_react_s: 3.0,
             seed: 1,
         }
     }
@@ -642,10 +648,11 @@ impl Planner {
     /// least depth integrated over the look-ahead, if that is at most [`DODGE_AREA_FRACTION`] of
     /// staying's.
     ///
-    /// When none of that takes a candidate and the arm is already deeper than `dodge_depth_m`
-    /// where it would stay (a bound that holds the arm whatever it does, as after an object
-    /// seen again close by, its axis unknown: its whole sweep), the bounds say nothing more of
-    /// where in them the object is, and braking there waits for it: the nearby candidates are
+    /// When none of that takes a candidate and the arm goes deeper than `dodge_depth_m` where
+    /// it would stay within `dodge_react_s` (a bound that holds the arm whatever it does, as
+    /// after an object seen again close by, its axis unknown: its whole sweep; or one that will
+    /// sweep over it faster than a nearby move gets out of its way), the bounds say nothing
+    /// more of where in them the object is, and braking there waits for it: the nearby candidates are
     /// scored against the predicted shapes alone (bounds × 0), where the objects most likely
     /// are, and the one that meets them latest is taken if that is [`DODGE_TIME_GAIN_S`] later
     /// than staying (`dodge_likely`).
@@ -717,9 +724,9 @@ impl Planner {
             {
                 l
             }
-            // Already that deep where it would stay, as every candidate is: the bounds say
-            // nothing more of where in them the objects are.
-            _ if stay.deep <= self.t0 + 2.0 * DODGE_DT => {
+            // That deep where it would stay within the reaction time, and no candidate puts
+            // it off: the bounds say nothing more of where in them the objects are.
+            _ if stay.deep <= self.t0 + self.cfg.dodge_react_s => {
                 self.dodge_likely(world, &stay_q, &near[..n_near], &mut keep_going)?
             }
             _ => return None,

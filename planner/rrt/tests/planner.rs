@@ -221,6 +221,29 @@ fn sphere_at_resting_arm(
     (w, p0, v, planner(), <Trajectory as Zeroed>::zeroed(), req)
 }
 
+/// [`sphere_at_resting_arm`], where nothing is clean: the dodge made there (an escape, into
+/// `out`) and [`dodge_and_stay_each_ms`] of it.
+struct Dodged {
+    w: WorldInTime,
+    p0: [f64; 3],
+    v: [f64; 3],
+    p: Planner,
+    out: Trajectory,
+    req: Request,
+    plan: dkrrt_rrt::Plan,
+    each: Vec<(f64, f64, f64)>,
+}
+
+fn dodged_at_resting_arm(r: f64, sigma: f64, inside: f64, speed: f64, t0: f64) -> Dodged {
+    let (w, p0, v, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, inside, speed, t0);
+    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
+    assert_eq!(plan.reach, Reach::Escape);
+    assert_eq!(out.traj_id, 9);
+    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    Dodged { w, p0, v, p, out, req, plan, each }
+}
+
 /// Every millisecond of the look-ahead from `t0`: (t, the clearance of the dodge `out`, the
 /// clearance of staying at `START`).
 fn dodge_and_stay_each_ms(w: &WorldInTime, out: &Trajectory, t0: f64) -> Vec<(f64, f64, f64)> {
@@ -288,13 +311,8 @@ fn a_start_inside_the_inflation_is_left_within_the_relief() {
 fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
     let (r, sigma, speed, t0) = (0.1, 0.1, 0.15, 2.0);
     // At t0 the inflated sphere is 2 cm inside the link; it passes right through it.
-    let (w, _, _, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.02, speed, t0);
-    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
-    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
-    assert_eq!(plan.reach, Reach::Escape);
-    assert_eq!(out.traj_id, 9);
+    let Dodged { mut p, mut out, req, plan, each, .. } = dodged_at_resting_arm(r, sigma, 0.02, speed, t0);
     // Measured every millisecond over the look-ahead: the dodge against staying.
-    let each = dodge_and_stay_each_ms(&w, &out, t0);
     let moved = each.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
     let stay = each.iter().map(|x| x.2).fold(f64::INFINITY, f64::min);
     assert!(moved > stay + 0.5 * DODGE_GAIN_M, "dodge {moved:.3} vs staying {stay:.3}");
@@ -315,12 +333,8 @@ fn with_nothing_clean_the_dodge_moves_away_from_a_coming_object() {
 #[test]
 fn inside_a_creeping_bound_the_dodge_backs_out() {
     let (r, sigma, speed, t0) = (0.1, 0.6, 0.05, 2.0);
-    let (w, p0, v, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.3, speed, t0);
-    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
+    let Dodged { p0, v, p, out, each, .. } = dodged_at_resting_arm(r, sigma, 0.3, speed, t0);
     let depth = p.cfg.dodge_depth_m;
-    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
-    assert_eq!(plan.reach, Reach::Escape);
-    let each = dodge_and_stay_each_ms(&w, &out, t0);
     assert!(each[0].2 < -depth, "set-up: the arm starts deeper than the dodge depth ({:.3})", each[0].2);
     let area = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(|x| (-f(x)).max(0.0) * 1e-3).sum::<f64>();
     let (moved, stay) = (area(|x| x.1), area(|x| x.2));
@@ -336,16 +350,13 @@ fn inside_a_creeping_bound_the_dodge_backs_out() {
     let deepest = |f: fn(&(f64, f64, f64)) -> f64| each.iter().map(f).fold(f64::INFINITY, f64::min);
     assert!(deepest(|x| x.1) >= deepest(|x| x.2) - 0.01, "{} vs {}", deepest(|x| x.1), deepest(|x| x.2));
     // The object itself (no bound): the dodge leaves the arm farther from it at the end.
-    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
-    bare.set_margin(0.0);
-    let t_end = each.last().unwrap().0;
-    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
-    let end = out.sample(t_end - t0).p;
-    let (c_moved, c_stay) = (
-        ch.clearance_at(&bare, &end, t_end, 0.0, f64::NEG_INFINITY),
-        ch.clearance_at(&bare, &START, t_end, 0.0, f64::NEG_INFINITY),
+    let met = met_by_the_object(r, p0, v, &out, t0);
+    assert!(
+        met.end_moved > met.end_stay + 0.05,
+        "object clearance at the end: dodge {:.3}, staying {:.3}",
+        met.end_moved,
+        met.end_stay
     );
-    assert!(c_moved > c_stay + 0.05, "object clearance at the end: dodge {c_moved:.3}, staying {c_stay:.3}");
 }
 
 /// The same wide bound 0.6 m into the resting arm, but receding at 5 cm/s: staying gets
@@ -368,6 +379,51 @@ fn inside_a_receding_bound_there_is_no_dodge() {
     assert!(p.dodge(&req, &w, 9, || true, &mut out).is_none());
 }
 
+/// The sphere of radius `r` itself (no bound, no margin) from `p0` at `v`, against the dodge
+/// `out` from `t0` and against staying at `START`, every millisecond of the look-ahead: when
+/// each first touches it (infinite: never), and their clearances at the look-ahead's end.
+struct Met {
+    moved: f64,
+    stay: f64,
+    end_moved: f64,
+    end_stay: f64,
+}
+
+impl Met {
+    /// Staying meets the object by `t_end`; the dodge [`DODGE_TIME_GAIN_S`] later or never.
+    fn assert_dodged(&self, t_end: f64) {
+        assert!(self.stay < t_end, "set-up: staying meets the object within the look-ahead");
+        assert!(
+            self.moved >= self.stay + DODGE_TIME_GAIN_S,
+            "met at {:.2} s, staying at {:.2} s",
+            self.moved,
+            self.stay
+        );
+    }
+}
+
+fn met_by_the_object(r: f64, p0: [f64; 3], v: [f64; 3], out: &Trajectory, t0: f64) -> Met {
+    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
+    bare.set_margin(0.0);
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
+    let t_end = t0 + PlannerConfig::default().lookahead_s;
+    let (mut met, mut t) =
+        (Met { moved: f64::INFINITY, stay: f64::INFINITY, end_moved: 0.0, end_stay: 0.0 }, t0);
+    while t <= t_end {
+        let cm = ch.clearance_at(&bare, &out.sample(t - t0).p, t, 0.0, f64::NEG_INFINITY);
+        let cs = ch.clearance_at(&bare, &START, t, 0.0, f64::NEG_INFINITY);
+        if cm < 0.0 && met.moved.is_infinite() {
+            met.moved = t;
+        }
+        if cs < 0.0 && met.stay.is_infinite() {
+            met.stay = t;
+        }
+        (met.end_moved, met.end_stay) = (cm, cs);
+        t += 1e-3;
+    }
+    met
+}
+
 /// A bound that holds the arm whatever it does (an object whose position is known to a
 /// metre, already 0.7 m into the resting arm), with the object itself 0.35 m from a link and
 /// closing at 0.1 m/s: every candidate is as deep as staying from the first instant, so no
@@ -378,45 +434,44 @@ fn inside_a_receding_bound_there_is_no_dodge() {
 #[test]
 fn in_a_bound_that_holds_the_arm_the_dodge_moves_away_from_the_likely_object() {
     let (r, sigma, speed, t0) = (0.1, 1.0, 0.1, 2.0);
-    let (w, p0, v, mut p, mut out, req) = sphere_at_resting_arm(r, sigma, 0.7, speed, t0);
-    assert!(p.plan(&req, &w, 300, || true, 9, &mut out).is_none(), "set-up: nothing clean");
-    let plan = p.dodge(&req, &w, 9, || true, &mut out).expect("a dodge");
-    assert_eq!(plan.reach, Reach::Escape);
-    let each = dodge_and_stay_each_ms(&w, &out, t0);
+    let Dodged { w, p0, v, p, out, each, .. } = dodged_at_resting_arm(r, sigma, 0.7, speed, t0);
     let depth = p.cfg.dodge_depth_m;
     assert!(each.iter().all(|x| x.1 < -depth && x.2 < -depth), "set-up: deep all along, moved or not");
-    // The object itself.
-    let mut bare = moving(DebrisShape::sphere(r), p0, v, 0.0, 30.0, 0.0);
-    bare.set_margin(0.0);
-    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
-    let t_end = t0 + p.cfg.lookahead_s;
-    let (mut moved, mut stay, mut t) = (f64::INFINITY, f64::INFINITY, t0);
-    let (mut hit_moved, mut hit_stay) = (f64::INFINITY, f64::INFINITY);
-    while t <= t_end {
-        let cm = ch.clearance_at(&bare, &out.sample(t - t0).p, t, 0.0, f64::NEG_INFINITY);
-        let cs = ch.clearance_at(&bare, &START, t, 0.0, f64::NEG_INFINITY);
-        (moved, stay) = (moved.min(cm), stay.min(cs));
-        if cm < 0.0 && hit_moved.is_infinite() {
-            hit_moved = t;
-        }
-        if cs < 0.0 && hit_stay.is_infinite() {
-            hit_stay = t;
-        }
-        t += 1e-3;
-    }
-    assert!(hit_stay < t_end, "set-up: staying meets the object within the look-ahead");
-    assert!(hit_moved >= hit_stay + DODGE_TIME_GAIN_S, "met at {hit_moved:.2} s, staying at {hit_stay:.2} s");
-    let end = out.sample(t_end - t0).p;
-    let (c_moved, c_stay) = (
-        ch.clearance_at(&bare, &end, t_end, 0.0, f64::NEG_INFINITY),
-        ch.clearance_at(&bare, &START, t_end, 0.0, f64::NEG_INFINITY),
-    );
+    let met = met_by_the_object(r, p0, v, &out, t0);
+    met.assert_dodged(t0 + p.cfg.lookahead_s);
     assert!(
-        c_moved > c_stay + 0.05,
-        "at the end: dodge {c_moved:.3}, staying {c_stay:.3} ({moved:.3}, {stay:.3})"
+        met.end_moved > met.end_stay + 0.05,
+        "at the end: dodge {:.3}, staying {:.3}",
+        met.end_moved,
+        met.end_stay
     );
     // The bounds as published in every check after it.
+    let mut ch = Checker::new(ArmModel::default_arm(), &limits().v_max, 0.03);
     assert!(ch.clearance_at(&w, &START, t0, 0.0, f64::NEG_INFINITY) < -0.6);
+}
+
+/// A wide bound that will sweep over the resting arm faster than any nearby move gets out of
+/// its way (fast-crossing, seed 4470, episode 1 through the camera: the arm braked where a
+/// box's 1 m bound was coming, and the box hit it) is dodged by where the object most likely
+/// is, as a bound that holds the arm already is.
+#[test]
+fn a_bound_about_to_sweep_the_arm_is_dodged_by_the_likely_object() {
+    let (r, sigma, speed, t0) = (0.1, 1.0, 0.8, 2.0);
+    // The bound 0.3 m short of link 4 at t0, the object itself 1.45 m short of it.
+    let Dodged { w, p0, v, mut p, mut out, req, each, .. } = dodged_at_resting_arm(r, sigma, -0.3, speed, t0);
+    let depth = p.cfg.dodge_depth_m;
+    let deep = |k: usize| each.iter().find(|x| [x.1, x.2][k] < -depth).map_or(f64::INFINITY, |x| x.0);
+    let (deep_moved, deep_stay) = (deep(0), deep(1));
+    assert!(each[0].2 > 0.0, "set-up: the arm is out of the bound at first");
+    assert!(deep_stay < t0 + p.cfg.dodge_react_s, "set-up: staying goes deep within the reaction time");
+    assert!(deep_moved < deep_stay + DODGE_TIME_GAIN_S, "set-up: the bound's rules take no move");
+    let met = met_by_the_object(r, p0, v, &out, t0);
+    met.assert_dodged(t0 + p.cfg.lookahead_s);
+
+    // Acting only on a bound the arm is already deep in (before), nothing is dodged: the arm
+    // stays where the object comes.
+    p.cfg.dodge_react_s = 0.1;
+    assert!(p.dodge(&req, &w, 9, || true, &mut out).is_none());
 }
 
 #[test]
