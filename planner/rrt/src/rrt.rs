@@ -652,10 +652,10 @@ impl Planner {
     /// it would stay within `dodge_react_s` (a bound that holds the arm whatever it does, as
     /// after an object seen again close by, its axis unknown: its whole sweep; or one that will
     /// sweep over it faster than a nearby move gets out of its way), the bounds say nothing
-    /// more of where in them the object is, and braking there waits for it: the nearby candidates are
-    /// scored against the predicted shapes alone (bounds × 0), where the objects most likely
-    /// are, and the one that meets them latest is taken if that is [`DODGE_TIME_GAIN_S`] later
-    /// than staying (`dodge_likely`).
+    /// more of where in them the object is, and braking there waits for it: the nearby
+    /// candidates are scored against the predicted shapes alone (bounds × 0), where the
+    /// objects most likely are, and the one that meets them latest is taken if that is
+    /// [`DODGE_TIME_GAIN_S`] later than staying (`dodge_likely`).
     ///
     /// A best effort, not a clean plan: its clearance
     /// may be negative, and the next cycle checks it like any other plan. Candidates are tried
