@@ -40,7 +40,9 @@
 //!   0.5–1.7 m/s): when no camera of the capture shows the object whole, it is reported
 //!   with the next capture, flagged
 //!   [`DEBRIS_PARTIAL`] (located from all the capture's views of it: **Rigs** below), with
-//!   the shape and attitude last seen whole, except a rod's axis and a disc's normal where
+//!   the shape and attitude last seen whole (never seen whole: the shape of its parts'
+//!   spreads, a panel's as the disc it sweeps in its plane, since no part shows its in-plane
+//!   attitude), except a rod's axis and a disc's normal where
 //!   the visible parts define them (a cut or half-hidden rod still shows its direction, a
 //!   panel its plane; taken from all the capture's views of it, else from the view with the
 //!   most pixels): then it is also flagged [`DEBRIS_AXIS_ONLY`]. The predictor takes its
@@ -498,7 +500,13 @@ impl DepthPerception {
                     kn.pending.is_none_or(|(o, px)| o.t_meas_ns != img.header.stamp_ns || px < e.points);
                 if better {
                     let (shape, radius) = kn.shape.unwrap_or_else(|| {
-                        let c = kn.class();
+                        // Never seen whole, a panel's in-plane attitude is unknown, but its
+                        // parts show its plane: it is reported as the disc it sweeps turning
+                        // in that plane, by its normal (module docs).
+                        let c = match kn.class() {
+                            Class::Panel => Class::Disc,
+                            c => c,
+                        };
                         shape_of(c, &kn.shape_spread(c))
                     });
                     let p = visible_centre(&e, &cam.position, kn.class());

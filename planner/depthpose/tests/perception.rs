@@ -570,11 +570,11 @@ fn a_panel_seen_edge_on_is_not_taken_for_a_rod() {
     reports.extend(reports_of_7(&mut per, &mut out, &[], 0.7));
     assert!(reports.len() >= 3, "the cut views are reported (partial): {reports:?}");
     for it in &reports {
-        // A box from the cut views' spreads: as large as the part they show (about 0.55 m of
-        // the 0.8 m half length here), 0.23 m wide; the edge-on line would have made it a
-        // capsule.
-        assert_eq!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Box), "{it:?}");
-        assert!(it.shape.dims[1] > 0.3, "{:?}", it.shape.dims);
+        // Never seen whole: the disc the cut views' panel sweeps in its plane (their part is
+        // about 0.55 m of the 0.8 m half length here, 0.4 m wide: corners 0.68 m out); the
+        // edge-on line would have made it a capsule.
+        assert_eq!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Disc), "{it:?}");
+        assert!(it.shape.dims[0] > 0.6, "{:?}", it.shape.dims);
     }
     // Seen whole, face-on: the panel it is.
     let whole = reports_of_7(&mut per, &mut out, &[panel(0.0, face_on)], 0.8);
@@ -610,6 +610,43 @@ fn an_object_seen_only_hidden_in_part_is_reported_as_partial_until_seen_whole() 
     assert!(off < 0.02, "the whole view's centre {off} m off");
     let long = whole[1].shape.dims[0].max(whole[1].shape.dims[1]);
     assert!((long - 0.8).abs() < 0.06, "long half extent {long} m (true 0.8)");
+}
+
+/// A panel never seen whole (something nearer across it from its first view on, as the arm
+/// often is in front of a base camera) has no in-plane attitude to report: its parts do not
+/// show it. They do show its plane: its partial reports are the disc the panel sweeps turning
+/// in that plane, by its visible normal (`DEBRIS_AXIS_ONLY`). Before, they were a box whose
+/// attitude was never measured: the predictor's attitude bound grew without end, and the
+/// planner had the panel as its bounding ball (seen on a camera study: a 1 m panel 3 m away
+/// behind the arm for 30 s, its ball blocking the arm's goal until the episode timed out).
+#[test]
+fn a_panel_never_seen_whole_is_the_disc_it_sweeps_by_its_visible_normal() {
+    use dkrrt_msg::{DEBRIS_AXIS_ONLY, DEBRIS_PARTIAL};
+    // A 1.6 x 0.8 m panel 3 m ahead, its normal turned 0.5 rad from the camera's axis about
+    // the vertical; a nearer box across its middle.
+    let (s, c) = (0.25f64.sin(), 0.25f64.cos());
+    let q = [c, 0.0, 0.0, s];
+    let panel = (7, cuboid([0.01, 0.8, 0.4]), [3.0, 0.0, 0.0], q, 0.9);
+    let across = (8, cuboid([0.05, 0.3, 0.6]), [2.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], 0.67);
+    let normal = [c * c - s * s, 2.0 * s * c, 0.0];
+    let mut per = DepthPerception::default();
+    let mut out = Box::new(<DebrisObservation as Zeroed>::zeroed());
+    let mut reports = Vec::new();
+    for k in 0..6 {
+        let t = 1.0 + 0.1 * k as f64;
+        reports.extend(reports_of_7(&mut per, &mut out, &[panel.clone(), across.clone()], t));
+    }
+    assert!(reports.len() >= 4, "{reports:?}");
+    for it in &reports {
+        assert_eq!(it.flags, DEBRIS_PARTIAL | DEBRIS_AXIS_ONLY, "{it:?}");
+        assert_eq!(ShapeKind::from_u32(it.shape.kind), Some(ShapeKind::Disc), "{it:?}");
+        let err = angle_sign_free(&rot_z(&it.q), &normal);
+        assert!(err < 0.05, "the visible normal: {err} rad off");
+    }
+    // Seen whole, it is the panel it is, with its full attitude.
+    let whole = reports_of_7(&mut per, &mut out, &[panel], 1.7);
+    assert_eq!(whole.len(), 2, "the held-back part, then the whole view");
+    assert_eq!((whole[1].flags, ShapeKind::from_u32(whole[1].shape.kind)), (0, Some(ShapeKind::Box)));
 }
 
 /// A small object far away shows a few pixels: from three on it is estimated and reported
