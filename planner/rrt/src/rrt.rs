@@ -727,7 +727,8 @@ impl Planner {
             // That deep where it would stay within the reaction time, and no candidate puts
             // it off: the bounds say nothing more of where in them the objects are.
             _ if stay.deep <= self.t0 + self.cfg.dodge_react_s => {
-                self.dodge_likely(world, &stay_q, &near[..n_near], &mut keep_going)?
+                let already = stay.deep <= self.t0 + 2.0 * DODGE_DT;
+                self.dodge_likely(world, &stay_q, &near[..n_near], already, &mut keep_going)?
             }
             _ => return None,
         };
@@ -745,14 +746,17 @@ impl Planner {
     /// shapes alone (bounds × 0, the margin kept), where the objects most likely are. The one
     /// that goes `dodge_depth_m` into them latest (never, best; ties to the larger clearance)
     /// is taken if that is [`DODGE_TIME_GAIN_S`] later than staying does, or, when staying
-    /// never does, if it never does either and keeps [`DODGE_LIKELY_GAIN_M`] more clearance
-    /// (moving on away rather than braking halfway out). Returns it with its score against
-    /// the bounds, as any dodge.
+    /// never does and the arm is `already` that deep in the bounds, if it never does either
+    /// and keeps [`DODGE_LIKELY_GAIN_M`] more clearance (moving on away rather than braking
+    /// halfway out). A bound still ahead of the arm whose object most likely passes it by
+    /// (a young track's, wide for a second) is left to the next forecasts: the arm stays.
+    /// Returns it with its score against the bounds, as any dodge.
     fn dodge_likely(
         &mut self,
         world: &WorldInTime,
         stay_q: &[f64; NJ],
         near: &[[f64; NJ]],
+        already: bool,
         keep_going: &mut impl FnMut() -> bool,
     ) -> Option<([f64; NJ], DodgeScore)> {
         world.set_bound_scale(0.0);
@@ -773,7 +777,7 @@ impl Planner {
                 if stay.deep.is_finite() {
                     b.deep >= stay.deep + DODGE_TIME_GAIN_S
                 } else {
-                    b.deep.is_infinite() && b.min >= stay.min + DODGE_LIKELY_GAIN_M
+                    already && b.deep.is_infinite() && b.min >= stay.min + DODGE_LIKELY_GAIN_M
                 }
             })
         })();
