@@ -650,6 +650,19 @@ fn main() -> ExitCode {
                      (the predictor's input stalled; stale_forecast_reads in the rows)"
                 );
             }
+            let refused: Vec<&dkrrt::study::Row> = rows.iter().filter(|r| r.forecasts_refused > 0).collect();
+            if let Some(r) = refused.first() {
+                println!(
+                    "warning: in {} episodes the planner refused forecasts ({} in all; {} {} {}: {}): \
+                     in the process set each fails the run's verdict (forecasts_refused in the rows)",
+                    refused.len(),
+                    refused.iter().map(|r| r.forecasts_refused).sum::<u64>(),
+                    r.scene,
+                    r.episode,
+                    r.method,
+                    r.forecast_error.as_deref().unwrap_or("stamped ahead of the plant clock")
+                );
+            }
             let info = dkrrt::study_report::RunInfo::now(&opts, &size, &goal, wall_s);
             let doc = serde_json::json!({
                 "seed": seed, "episodes": episodes, "scenes": scenes, "methods": methods, "goal": goal,

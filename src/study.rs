@@ -67,6 +67,11 @@ pub struct Row {
     pub stale_forecast_reads: u64,
     /// Configurations the planner checked (its work, the same on any machine).
     pub planner_configs: u64,
+    /// Forecasts the planner refused (by the message contract, or stamped ahead of the plant
+    /// clock), and why the newest was: in the process set each is a rejected message that
+    /// fails the run's verdict.
+    pub forecasts_refused: u64,
+    pub forecast_error: Option<String>,
     pub error: Option<String>,
 }
 
@@ -103,6 +108,8 @@ impl Row {
             episode_gen_s: 0.0,
             stale_forecast_reads: 0,
             planner_configs: 0,
+            forecasts_refused: 0,
+            forecast_error: None,
             error: None,
         }
     }
@@ -236,6 +243,8 @@ pub fn run_episode(
             row.deadline_misses = p.deadline_misses;
             row.min_predicted_clearance_m = p.min_predicted_clearance_m;
             row.planner_configs = p.configs_checked;
+            row.forecasts_refused = p.forecasts_ahead + p.forecasts_invalid;
+            row.forecast_error = p.forecast_error;
         }
         Ok(())
     })();

@@ -136,13 +136,20 @@ pub fn checks(
     ];
     let total: u64 = rejected.iter().map(|r| r.1).sum();
     let list: Vec<String> = rejected.iter().filter(|r| r.1 > 0).map(|r| format!("{} {}", r.1, r.0)).collect();
+    // Why, where the reader says (the newest refusal per input).
+    let why: Vec<&str> = plan
+        .get("rejections")
+        .and_then(Value::as_array)
+        .map(|v| v.iter().filter_map(Value::as_str).collect())
+        .unwrap_or_default();
     push(
         "rejected_messages",
         total <= k.max_rejected_messages,
         format!(
-            "{total} rejected{} (at most {})",
+            "{total} rejected{} (at most {}){}",
             if list.is_empty() { String::new() } else { format!(": {}", list.join(", ")) },
-            k.max_rejected_messages
+            k.max_rejected_messages,
+            if why.is_empty() { String::new() } else { format!("; last: {}", why.join("; ")) }
         ),
     );
 

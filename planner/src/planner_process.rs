@@ -34,6 +34,12 @@ pub struct PlannerReport {
     /// Messages refused: by the bus's contract checks, and forecasts stamped ahead of the
     /// plant clock (`forecasts_ahead`).
     pub rejected: u64,
+    /// Of `rejected`, per input: `state`, `command`, `forecast`, `goal`, `forecast_ahead`,
+    /// `forecast_invalid`.
+    pub rejected_by_input: std::collections::BTreeMap<&'static str, u64>,
+    /// Why the newest refused message of each input was refused: the service and the
+    /// contract's field (`"dkrrt/debris_forecast: tracks.steps.sigma_m[3] = …"`).
+    pub rejections: Vec<String>,
     /// End-effector pose goals no IK solution reached (the goal in force was kept).
     pub pose_goals_unreachable: u64,
     pub stopped_by_signal: bool,
@@ -191,6 +197,21 @@ pub fn run(
             &[state_sub.rejected, cmd_sub.rejected, fc_sub.rejected, goal_sub.rejected],
             &core,
         ),
+        rejected_by_input: [
+            ("state", state_sub.rejected),
+            ("command", cmd_sub.rejected),
+            ("forecast", fc_sub.rejected),
+            ("goal", goal_sub.rejected),
+            ("forecast_ahead", core.stats.forecasts_ahead),
+            ("forecast_invalid", core.stats.forecasts_invalid),
+        ]
+        .into_iter()
+        .collect(),
+        rejections: [state_sub.rejection(), cmd_sub.rejection(), fc_sub.rejection(), goal_sub.rejection()]
+            .into_iter()
+            .chain([core.summary("").forecast_error])
+            .flatten()
+            .collect(),
         pose_goals_unreachable,
         stopped_by_signal,
     };
@@ -202,8 +223,9 @@ pub fn run(
     Ok(rep)
 }
 
-/// Messages the planner refused: those its subscribers' contract checks rejected (`subs`), and
-/// forecasts stamped ahead of the plant clock (`forecasts_ahead`).
+/// Messages the planner refused: those its subscribers' contract checks rejected (`subs`),
+/// forecasts stamped ahead of the plant clock (`forecasts_ahead`) and those its core refused
+/// by the contract (`forecasts_invalid`: none that passed the bus).
 fn rejected(subs: &[u64], core: &Replanner) -> u64 {
-    subs.iter().sum::<u64>() + core.stats.forecasts_ahead
+    subs.iter().sum::<u64>() + core.stats.forecasts_ahead + core.stats.forecasts_invalid
 }

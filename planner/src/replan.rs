@@ -29,5 +29,8 @@ pub fn configs(sc: &Scenario) -> (PlannerConfig, ReplanConfig) {
 pub fn replanner(sc: &Scenario, model: dkrrt_model::ArmModel) -> Replanner {
     let (pc, rc) = configs(sc);
     let limits = dkrrt_otg::Limits { v_max: sc.motion.v_max, a_max: sc.motion.a_max, j_max: sc.motion.j_max };
-    Replanner::new(model, limits, pc, rc, sc.has_debris())
+    let lim = dkrrt_config::arm::contract_limits(&model);
+    let mut core = Replanner::new(model, limits, pc, rc, sc.has_debris());
+    core.set_contract(lim);
+    core
 }

@@ -181,6 +181,12 @@ impl AxisPrecession {
         self.z = zs;
     }
 
+    /// Whether an axis was absorbed since the start (or the last restart): the forecasts
+    /// ([`AxisPrecession::axis_at`]) start from the newest one.
+    pub fn has_samples(&self) -> bool {
+        self.len > 0
+    }
+
     /// The precession vector `Ω` (frame axes), rad/s: the least-squares solution with a ridge
     /// toward the filter's rate (which alone it is before the first chord).
     pub fn omega(&self) -> [f64; 3] {

@@ -1079,7 +1079,9 @@ impl DebrisPredictor {
                 tr.score.record(tr.filter.t, &buf.states[k * hb * N..(k * hb + h) * N]);
             }
             let rows = k * hb..k * hb + h;
-            if physics {
+            // The precession channel forecasts from its newest measured axis: none since its
+            // restart (an attitude event, then only views that show no axis), the model's.
+            if physics && tr.axis.prec.has_samples() {
                 let om = tr.axis.prec.omega();
                 tr.axis.prec.axes_into(
                     &om,

@@ -838,3 +838,42 @@ fn a_track_is_forecast_from_its_second_pose() {
     // is 0.7 m/s, so the bound 4 s ahead is metres, not the fitted 0.05 m.
     assert!(buf.pos_radius(0, 40) > 1.0, "{}", buf.pos_radius(0, 40));
 }
+
+/// A rod's axis forecast (the precession channel) needs measured axes. After an attitude
+/// event restarts that channel, a camera may report the rod only in parts that show no axis
+/// for a while; its forecasts then fall back to the model's axis, with the model's bound.
+/// (They were NaN: the channel's forecast started from its newest sample's time, and it had
+/// none; the planner refused each such forecast as a contract violation.)
+#[test]
+fn a_rod_whose_axis_channel_restarted_and_sees_no_axis_is_forecast_finite() {
+    let cfg = PredictorConfig { attitude_physics: Some(true), ..Default::default() };
+    let mut pr = DebrisPredictor::new(Models::constant_velocity(0.1, 40, 0.0, 0.05, 0.05), cfg);
+    let rod = dkrrt_msg::DebrisShape::capsule(0.9, 0.05);
+    // Tumbling end over end about x at 0.5 rad/s, then at 3 rad/s (a collision, say).
+    let (dt, t_event) = (0.02, 3.0);
+    let angle = |t: f64| if t < t_event { 0.5 * t } else { 0.5 * t_event + 3.0 * (t - t_event) };
+    let q = |t: f64| [(0.5 * angle(t)).cos(), (0.5 * angle(t)).sin(), 0.0, 0.0];
+    let mut k = 0;
+    while pr.stats().events == 0 {
+        let t = k as f64 * dt;
+        assert!(t < t_event + 1.0, "no attitude event by t = {t}");
+        pr.observe(&obs(7, t, [2.0, 0.0, 0.0], q(t)));
+        pr.set_shape(7, &rod);
+        k += 1;
+    }
+    // Now parts only, none showing the axis.
+    for _ in 0..5 {
+        let t = k as f64 * dt;
+        let mut o = obs(7, t, [2.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]);
+        o.partial = true;
+        assert_eq!(pr.observe(&o), ObserveOutcome::Accepted);
+        k += 1;
+    }
+    let mut buf = ForecastBuffer::for_predictor(&pr);
+    assert_eq!(pr.forecast(&mut buf), 1);
+    for s in 1..=buf.horizon() {
+        let (axis, q) = (buf.axis(0, s), buf.published_attitude(0, s, &rod));
+        assert!(axis.iter().chain(&q).all(|v| v.is_finite()), "step {s}: axis {axis:?}, attitude {q:?}");
+        assert!(buf.axis_radius(0, s).is_finite() && buf.axis_radius(0, s) > 0.0, "step {s}");
+    }
+}

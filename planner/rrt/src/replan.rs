@@ -18,7 +18,11 @@
 //! often clear it) only while an escape from it is known: see [`Replanner::hold_conflicting`].
 
 use dkrrt_model::{ArmModel, NJ};
-use dkrrt_msg::{ControllerMode, DebrisForecast, Fallback, PlanStatus, Trajectory, Zeroed};
+use dkrrt_msg::bus::Topic;
+use dkrrt_msg::{
+    ContractLimits, ControllerMode, DebrisForecast, Fallback, PlanStatus, Trajectory, Validate,
+    ValidationError, Zeroed,
+};
 use dkrrt_otg::{KinState, Limits, Options};
 use dkrrt_rt::hist::{LatencyHist, Percentiles};
 use serde::Serialize;
@@ -150,6 +154,9 @@ pub struct ReplanStats {
     /// Forecasts refused as stamped ahead of the cycle's plant time by more than
     /// [`FORECAST_LEAD_S`] ([`Replanner::step`]).
     pub forecasts_ahead: u64,
+    /// Forecasts refused by the message contract ([`Replanner::set_contract`]): the lockstep's
+    /// counterpart of the bus's check (which the process's forecasts pass before they get here).
+    pub forecasts_invalid: u64,
 }
 
 /// A forecast starts at its newest observation, which is never after the plant time it is
@@ -183,6 +190,9 @@ pub struct Summary {
     pub cycles_waiting_for_forecast: u64,
     /// Forecasts refused as stamped more than [`FORECAST_LEAD_S`] ahead of the cycle.
     pub forecasts_ahead: u64,
+    /// Forecasts refused by the message contract, and why the newest of them was.
+    pub forecasts_invalid: u64,
+    pub forecast_error: Option<String>,
     pub iterations: u64,
     /// Configurations the planner checked over the run (searches, plan checks, dodges): its
     /// work, whatever the machine's speed.
@@ -227,6 +237,10 @@ pub struct Replanner {
     clock: CycleClock,
     /// Print one line per cycle to stderr (`DKRRT_PLAN_DEBUG` set at construction).
     pub debug: bool,
+    /// The message contract forecasts are checked against (`None`: not checked).
+    contract: Option<ContractLimits>,
+    /// Why the newest refused forecast was refused.
+    forecast_error: Option<ValidationError>,
 }
 
 impl Replanner {
@@ -260,7 +274,17 @@ impl Replanner {
             misses: 0,
             clock: CycleClock::new(cfg.cycle_s),
             cfg,
+            contract: None,
+            forecast_error: None,
         }
+    }
+
+    /// Checks every forecast against the message contract before it is read, as the bus
+    /// checks each message it delivers: one that breaks it (a NaN attitude, a position out of
+    /// range…) is refused, counted (`forecasts_invalid`) and the last one kept. In process
+    /// (the lockstep) nothing else checks them.
+    pub fn set_contract(&mut self, lim: ContractLimits) {
+        self.contract = Some(lim);
     }
 
     /// Plan compute times (cycles that ran the planner), ms.
@@ -315,6 +339,8 @@ impl Replanner {
             goal_reached_s: s.goal_reached_s,
             cycles_waiting_for_forecast: s.cycles_waiting_for_forecast,
             forecasts_ahead: s.forecasts_ahead,
+            forecasts_invalid: s.forecasts_invalid,
+            forecast_error: self.forecast_error.map(|e| format!("{}: {e}", DebrisForecast::SERVICE)),
             iterations: s.planner_iterations,
             configs_checked: self.planner.checker.configs_checked,
         }
@@ -353,8 +379,12 @@ impl Replanner {
         let cc0 = self.planner.checker.configs_checked;
         self.stats.cycles += 1;
         if let Some(f) = forecast {
+            let broken = self.contract.as_ref().and_then(|lim| f.validate(lim).err());
             if f.t0_ns as f64 * 1e-9 > now_ns as f64 * 1e-9 + FORECAST_LEAD_S {
                 self.stats.forecasts_ahead += 1;
+            } else if let Some(e) = broken {
+                self.stats.forecasts_invalid += 1;
+                self.forecast_error = Some(e);
             } else {
                 self.world.load_forecast(f);
                 self.have_forecast = true;

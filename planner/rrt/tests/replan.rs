@@ -546,6 +546,36 @@ fn reachable_pose_goals_get_an_ik_solution() {
     assert!(none <= 1, "{none} of 400 reachable poses without a solution");
 }
 
+/// A forecast that breaks the message contract (here a NaN attitude, as the predictor once
+/// published for a rod whose axis channel had restarted) is refused by the core, counted and
+/// named, and the last one stays in force: the lockstep, which has no bus to check its
+/// forecasts, refuses what the process set's bus refuses.
+#[test]
+fn a_forecast_breaking_the_contract_is_refused_by_the_core_and_the_last_one_kept() {
+    let mut rp = replanner();
+    rp.set_contract(dkrrt_msg::ContractLimits::symmetric(10.0, 10.0, 1e3));
+    let mut out = Box::new(<Trajectory as Zeroed>::zeroed());
+    let mut clk = clock();
+    let idle = TrackerView { mode: ControllerMode::Idle, traj_id: 0 };
+    let on_arm = forecast(0, ee_at(&START), 0.2);
+    rp.step(0, &START, idle, Some(&on_arm), &GOAL, &mut clk, &mut out);
+    assert!(rp.predicted_clearance(&START, 0.1).unwrap() < 0.0);
+    // The object said to be 50 m away, one step's attitude NaN: refused.
+    let mut bad = forecast(100_000_000, [50.0, 0.0, 0.0], 0.2);
+    bad.tracks[0].steps[7].q[0] = f64::NAN;
+    rp.step(100_000_000, &START, idle, Some(&bad), &GOAL, &mut clk, &mut out);
+    let s = rp.summary("dk-rrt");
+    assert_eq!((s.forecasts_invalid, s.forecasts_ahead), (1, 0));
+    let why = s.forecast_error.expect("the reason");
+    assert!(why.contains("dkrrt/debris_forecast") && why.contains("tracks.steps.q"), "{why}");
+    assert!(rp.predicted_clearance(&START, 0.2).unwrap() < 0.0, "the last forecast is in force");
+    // The same forecast, whole: taken.
+    let good = forecast(200_000_000, [50.0, 0.0, 0.0], 0.2);
+    rp.step(200_000_000, &START, idle, Some(&good), &GOAL, &mut clk, &mut out);
+    assert_eq!(rp.summary("dk-rrt").forecasts_invalid, 1);
+    assert!(rp.predicted_clearance(&START, 0.3).unwrap() > 0.0, "the new forecast is in force");
+}
+
 /// A forecast stamped far ahead of the cycle's plant time would be read backwards from its
 /// first step: its objects placed where they were long before, away from the arm. It is
 /// refused and counted, and the forecast the planner had stays in force: the arm does not

@@ -434,6 +434,12 @@ impl PublisherLock {
 }
 
 impl<T: Topic> Sub<T> {
+    /// Why the newest refused sample was refused, naming the service and the contract's field
+    /// (`None`: none was refused). Allocates: for reports, not for hot loops.
+    pub fn rejection(&self) -> Option<String> {
+        self.last_error.as_ref().map(|e| format!("{}: {e}", T::SERVICE))
+    }
+
     /// Drains the queue; copies the newest *valid* sample into `out` (its used part:
     /// [`UsedPart`]) and returns true if there was one. Invalid samples are counted and
     /// dropped.
