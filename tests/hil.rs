@@ -279,3 +279,26 @@ fn an_arm_that_takes_setpoints_is_driven_in_servo_mode_to_the_goal() {
     assert_eq!(num(&r, "/link/aborts"), 0.0);
     assert!(num(&r, "/link/emulator/arm/commands_applied") > 3000.0);
 }
+
+/// The simulated depth camera comes with the simulated world, whichever driver runs it: with
+/// `predictor.input = "depth"` over UDP the driver renders the camera on the arm's clock, and
+/// the predictor forecasts from its frames. (It had none: the predictor waited for frames
+/// that never came, the planner for forecasts, and the arm never moved.)
+#[test]
+fn over_udp_the_predictor_sees_the_debris_through_the_camera() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = std::env::temp_dir().join(format!("dkrrt-hil-depth-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = scenario(&dir, "[udp]\ndelay_ms = 0.2\n");
+    let text = std::fs::read_to_string(&sc).unwrap().replace("input = \"poses\"", "input = \"depth\"");
+    assert!(text.contains("input = \"depth\""));
+    std::fs::write(&sc, text).unwrap();
+    let (ok, r, text) = launch(&sc, &["--driver", "udp", "--duration", "4"], "depth");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(ok, "{text}");
+    // 20 frames per second of the arm's 4 s (each capture is delivered once its latency has
+    // passed; one or two at the end may not be).
+    assert!(num(&r, "/camera/frames") >= 70.0, "{:#}", r["camera"]);
+    assert!(num(&r, "/predictor/forecasts") > 100.0, "{:#}", r["predictor"]);
+    assert_eq!(r["debris"]["collision"], false);
+}

@@ -89,6 +89,9 @@ pub struct DriverReport {
     pub final_q: [f64; NJ],
     pub final_qd: [f64; NJ],
     pub debris: Option<DebrisStats>,
+    /// The simulated depth camera's figures (`[camera] enabled` or `predictor.input =
+    /// "depth"`; `null` when off).
+    pub camera: Option<dkrrt_sim::camera_proc::CameraReport>,
     pub stopped_by_signal: bool,
     pub stop: Option<StopReport>,
     pub link: LinkReport,
@@ -142,6 +145,9 @@ pub fn run(
         None => None,
     };
     let mut obs_msg = <DebrisObservation as Zeroed>::zeroed();
+    // The simulated depth camera, rendering the same world on the arm's clock as the sim
+    // process does on its own (a thread of its own; `dkrrt_sim::camera_proc`).
+    let mut camera = dkrrt_sim::camera_proc::SimCamera::new(run, sc)?;
     let dt_s = sc.period_ns() as f64 * 1e-9;
     let cmd_wait_ns = (sc.period_ns() as f64 * COMMAND_WAIT_FRACTION) as u64;
     // What the arm takes (`tracker.command`): torques, or setpoints for its own servo.
@@ -245,6 +251,9 @@ pub fn run(
                         let rep = d
                             .tick(dt_s, q, &mut obs_msg, |m| p.publish(m).map(|_| ()))
                             .map_err(|e| e.to_string())?;
+                        if let Some(cam) = camera.as_mut() {
+                            cam.tick(d, q, (last_tick + i + 1) * sc.period_ns())?;
+                        }
                         if let (true, Some(c)) = (rep.first_contact, d.stats.first_contact) {
                             eprintln!(
                             "udp-driver: COLLISION: link {} hit debris {} at t = {:.3} s (distance {:.4} m)",
@@ -362,6 +371,7 @@ pub fn run(
         final_q,
         final_qd,
         debris: debris.as_ref().map(|d| d.stats),
+        camera: camera.map(|c| c.finish()).transpose()?,
         stopped_by_signal: policy.stopped_by_signal,
         stop: policy.report(),
         link: LinkReport {
