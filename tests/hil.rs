@@ -261,16 +261,25 @@ fn the_latency_suite_measures_every_series_side_by_side_and_draws_them() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// [`scenario`] with `extra` and one line `edit`ed (`(from, to)`: it must be there), launched
+/// over UDP with `args` (in a directory of its own, removed after).
+fn launch_edited(tag: &str, extra: &str, edit: (&str, &str), args: &[&str]) -> (bool, Value, String) {
+    let dir = std::env::temp_dir().join(format!("dkrrt-hil-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let sc = scenario(&dir, extra);
+    let text = std::fs::read_to_string(&sc).unwrap();
+    assert!(text.contains(edit.0), "the scenario has no `{}`", edit.0);
+    std::fs::write(&sc, text.replace(edit.0, edit.1)).unwrap();
+    let out = launch(&sc, &[&["--driver", "udp"], args].concat(), tag);
+    let _ = std::fs::remove_dir_all(&dir);
+    out
+}
+
 #[test]
 fn an_arm_that_takes_setpoints_is_driven_in_servo_mode_to_the_goal() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = std::env::temp_dir().join(format!("dkrrt-hil-servo-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let sc = scenario(&dir, "[udp]\ndelay_ms = 0.2\nloss = 0.005\n");
-    let text = std::fs::read_to_string(&sc).unwrap().replace("command = \"torque\"", "command = \"servo\"");
-    std::fs::write(&sc, text).unwrap();
-    let (ok, r, text) = launch(&sc, &["--driver", "udp"], "servo");
-    let _ = std::fs::remove_dir_all(&dir);
+    let extra = "[udp]\ndelay_ms = 0.2\nloss = 0.005\n";
+    let (ok, r, text) = launch_edited("servo", extra, ("command = \"torque\"", "command = \"servo\""), &[]);
     assert!(ok, "{text}");
     // The emulated arm's own servo tracked the setpoints: the goal reached (the verdict),
     // within a few mrad all along (no acceleration feed-forward, two ticks of delay).
@@ -287,14 +296,8 @@ fn an_arm_that_takes_setpoints_is_driven_in_servo_mode_to_the_goal() {
 #[test]
 fn over_udp_the_predictor_sees_the_debris_through_the_camera() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = std::env::temp_dir().join(format!("dkrrt-hil-depth-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let sc = scenario(&dir, "[udp]\ndelay_ms = 0.2\n");
-    let text = std::fs::read_to_string(&sc).unwrap().replace("input = \"poses\"", "input = \"depth\"");
-    assert!(text.contains("input = \"depth\""));
-    std::fs::write(&sc, text).unwrap();
-    let (ok, r, text) = launch(&sc, &["--driver", "udp", "--duration", "4"], "depth");
-    let _ = std::fs::remove_dir_all(&dir);
+    let edit = ("input = \"poses\"", "input = \"depth\"");
+    let (ok, r, text) = launch_edited("depth", "[udp]\ndelay_ms = 0.2\n", edit, &["--duration", "4"]);
     assert!(ok, "{text}");
     // 20 frames per second of the arm's 4 s (each capture is delivered once its latency has
     // passed; one or two at the end may not be).

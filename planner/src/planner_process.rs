@@ -31,8 +31,9 @@ pub struct PlannerReport {
     #[serde(flatten)]
     pub summary: Summary,
     pub forecasts_received: u64,
-    /// Messages refused: by the bus's contract checks, and forecasts stamped ahead of the
-    /// plant clock (`forecasts_ahead`).
+    /// Messages refused: by the bus's contract checks, forecasts stamped ahead of the plant
+    /// clock (`forecasts_ahead`) and those the core refused by the contract
+    /// (`forecasts_invalid`).
     pub rejected: u64,
     /// Of `rejected`, per input: `state`, `command`, `forecast`, `goal`, `forecast_ahead`,
     /// `forecast_invalid`.
