@@ -911,3 +911,20 @@ fn a_cube_rigs_six_frames_per_capture_all_reach_the_predictor_process() {
     assert_eq!(num(&r, "/predictor_stats/observations/frames_lost"), 0.0, "{:#}", r["predictor_stats"]);
     assert_eq!(num(&r, "/predictor_stats/observations/frames"), frames, "{:#}", r["predictor_stats"]);
 }
+
+/// A simulator measuring the arm with noise: the tracker's hold answers it with real motion
+/// (about 1.4e-4 rad/s per joint with 1e-4 rad of position noise and kp = 400), which the
+/// stop's rest test allows for (`dkrrt_sim::stop::rest_speed`): the run ends at rest, not in a
+/// forced brake. (With a fixed 1e-4 rad/s test it never called the arm at rest, braked it 5 s
+/// after the end and failed `safe_holds`.)
+#[test]
+fn a_noisy_measurement_still_ends_the_run_at_rest_without_brakes() {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/shared/config/scenarios/default.toml"))
+            .unwrap()
+            .replace("noise_q_std = 0.0 ", "noise_q_std = 0.0001 ");
+    assert!(text.contains("noise_q_std = 0.0001 "));
+    let (r, _) = launch_lockstep(&text, "noise");
+    assert_eq!(r["safe_hold"]["plant_brake_engagements"], 0, "{:#}", r["safe_hold"]);
+    assert!(r["final_error_rad"].as_f64().unwrap() < 0.01);
+}

@@ -154,7 +154,10 @@ pub fn run(
     let mut k = 0u64;
     // The controlled stop (crate::stop): asked for by a signal, or the duration is over with
     // the arm moving. The gates are dropped when it begins.
-    let mut policy = StopPolicy::new(sc.run.control_hz, total);
+    // The rest test allows for the measurement noise the tracker's hold answers.
+    let kp_max = sc.tracker.kp.iter().fold(0.0f64, |m, &k| m.max(k));
+    let rest = crate::stop::rest_speed(sc.sim.noise_q_std, sc.sim.noise_qd_std, kp_max);
+    let mut policy = StopPolicy::new(sc.run.control_hz, total).with_rest_speed(rest);
     loop {
         if sc.run.mode == Mode::Realtime {
             let w = pacer.wait(|| policy.report().is_none() && signals::stop_requested());

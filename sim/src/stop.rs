@@ -10,6 +10,16 @@
 
 /// A joint slower than this is at rest, rad/s.
 pub const REST_SPEED_RAD_S: f64 = 1e-4;
+/// A hold answers position noise σ_q (rad) in its measurements with real motion: at the loop's
+/// bandwidth √kp it moves by about √kp·σ_q per second at most (and by a small share of a
+/// velocity noise σ_qd). The rest test's speed for a plant measured with that noise: at least
+/// [`REST_SPEED_RAD_S`], and three times that motion (with `noise_q_std = 1e-4` rad and kp =
+/// 400 the hold jitters at about 1.4e-4 rad/s, which a 1e-4 rad/s test never called rest: the
+/// run ended in a forced brake).
+pub fn rest_speed(noise_q_std: f64, noise_qd_std: f64, kp_max: f64) -> f64 {
+    REST_SPEED_RAD_S.max(3.0 * (noise_qd_std + kp_max.max(0.0).sqrt() * noise_q_std))
+}
+
 /// The run ends once the arm has been at rest this many ticks in a row (after a stop
 /// request, or at the end of its duration).
 pub const REST_TICKS: u64 = 50;
@@ -57,6 +67,8 @@ pub struct StopPolicy {
     brake_ticks: u64,
     limit_ticks: u64,
     rest_ticks: u64,
+    /// A joint slower than this is at rest ([`REST_SPEED_RAD_S`], or [`rest_speed`]).
+    rest_speed: f64,
     stop_k: u64,
     report: Option<StopReport>,
     /// A stop request (not the duration) began the stop.
@@ -72,16 +84,23 @@ impl StopPolicy {
             brake_ticks: (STOP_BRAKE_AFTER_S * control_hz) as u64,
             limit_ticks: (STOP_LIMIT_S * control_hz) as u64,
             rest_ticks: 0,
+            rest_speed: REST_SPEED_RAD_S,
             stop_k: 0,
             report: None,
             stopped_by_signal: false,
         }
     }
 
+    /// The rest test's speed, rad/s (at least [`REST_SPEED_RAD_S`]; see [`rest_speed`]).
+    pub fn with_rest_speed(mut self, v: f64) -> StopPolicy {
+        self.rest_speed = v.max(REST_SPEED_RAD_S);
+        self
+    }
+
     /// Tick `k` (ticks since the session began, increasing; gaps allowed) with the arm's largest
     /// measured joint speed and whether a stop was requested.
     pub fn tick(&mut self, k: u64, max_speed: f64, stop_requested: bool) -> StopStep {
-        self.rest_ticks = if max_speed < REST_SPEED_RAD_S { self.rest_ticks + 1 } else { 0 };
+        self.rest_ticks = if max_speed < self.rest_speed { self.rest_ticks + 1 } else { 0 };
         let at_rest = self.rest_ticks >= REST_TICKS;
         let mut step = StopStep::default();
         if self.report.is_none() && (stop_requested || (k >= self.total_ticks && !at_rest)) {
