@@ -380,7 +380,8 @@ fn scenario(c: &Common) -> Result<Scenario, String> {
     sc.load_arm().map_err(|e| e.to_string())?;
     // A threat episode: every process regenerates the same start, goal and debris.
     let duration = sc.run.duration_s;
-    if dkrrt_episodes::resolve(&mut sc)?.is_some() && c.duration.is_some() {
+    let episode = dkrrt_episodes::resolve(&mut sc).map_err(|e| format!("scenario {}: {e}", c.scenario))?;
+    if episode.is_some() && c.duration.is_some() {
         sc.run.duration_s = duration;
     }
     Ok(sc)

@@ -471,6 +471,12 @@ fn a_broken_scenario_is_refused_naming_the_field() {
             "predictor.method = \"crystal-ball\"",
         ),
         ("\nmodel = \"\"", "\nmodel = \"missing.dkm\"", "predictor.model = "),
+        // The episode's scene file, read when the episode is generated.
+        (
+            "scene = \"fast-crossing\"",
+            "scene = \"missing-scene.toml\"",
+            "episode.scene \"missing-scene.toml\"",
+        ),
     ] {
         assert!(dkrrt_config::DEFAULT_SCENARIO.contains(from), "{from}");
         std::fs::write(&p, dkrrt_config::DEFAULT_SCENARIO.replace(from, to)).unwrap();
