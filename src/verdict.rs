@@ -155,12 +155,17 @@ pub fn checks(
 
     let holds = count(tr, "/safe_hold_entries");
     let brakes = count(sim, "/plant/brake_engagements");
+    // The controlled stop's brakes forced by the driver (the sim's are plant brake
+    // engagements too; a network driver's are the arm's own, which the emulator's plant
+    // figures do not count): the controller did not bring the arm to rest.
+    let forced = sim.pointer("/stop/brakes_forced").and_then(Value::as_bool) == Some(true);
     push(
         "safe_holds",
-        holds <= k.max_safe_holds && brakes == 0,
+        holds <= k.max_safe_holds && brakes == 0 && !forced,
         format!(
-            "{holds} safe holds (at most {}), {brakes} plant brake engagements (none allowed)",
-            k.max_safe_holds
+            "{holds} safe holds (at most {}), {brakes} plant brake engagements (none allowed){}",
+            k.max_safe_holds,
+            if forced { ", the stop's brakes forced: not at rest 5 s after it began" } else { "" }
         ),
     );
     out
@@ -226,6 +231,13 @@ mod tests {
             verdict(&sc, &end, &sim, &tr, &with(&plan, "/goal_reached_s", Value::Null)),
             ["goal_reached"]
         );
+        // The stop's brakes forced by a network driver (no plant brake counted).
+        let s = with(&sim, "/plant/brake_engagements", json!(0));
+        let mut s2 = s.clone();
+        s2["stop"] = json!({"cause": "duration", "brakes_forced": true, "at_rest": true});
+        assert_eq!(verdict(&sc, &end, &s2, &tr, &plan), ["safe_holds"]);
+        s2["stop"]["brakes_forced"] = json!(false);
+        assert!(verdict(&sc, &end, &s2, &tr, &plan).is_empty());
         // A collision; hard-stop hits; a NaN plant step.
         let s = with(&sim, "/debris/first_contact", json!({"link": 2, "debris_id": 9, "t_s": 0.0}));
         assert_eq!(verdict(&sc, &end, &s, &tr, &plan), ["no_collision"]);
