@@ -155,8 +155,7 @@ pub fn run(
     // The controlled stop (crate::stop): asked for by a signal, or the duration is over with
     // the arm moving. The gates are dropped when it begins.
     // The rest test allows for the measurement noise the tracker's hold answers.
-    let kp_max = sc.tracker.kp.iter().fold(0.0f64, |m, &k| m.max(k));
-    let rest = crate::stop::rest_speed(sc.sim.noise_q_std, sc.sim.noise_qd_std, kp_max);
+    let rest = crate::stop::scenario_rest_speed(sc);
     let mut policy = StopPolicy::new(sc.run.control_hz, total).with_rest_speed(rest);
     loop {
         if sc.run.mode == Mode::Realtime {

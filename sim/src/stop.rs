@@ -20,6 +20,14 @@ pub fn rest_speed(noise_q_std: f64, noise_qd_std: f64, kp_max: f64) -> f64 {
     REST_SPEED_RAD_S.max(3.0 * (noise_qd_std + kp_max.max(0.0).sqrt() * noise_q_std))
 }
 
+/// [`rest_speed`] for the scenario's measurement noise (`sim.noise_*`: the sim's, and the
+/// emulated arm's over UDP) and the tracker's stiffest joint: what `dkrrt sim` and
+/// `dkrrt udp-driver` give their [`StopPolicy`].
+pub fn scenario_rest_speed(sc: &dkrrt_config::Scenario) -> f64 {
+    let kp_max = sc.tracker.kp.iter().fold(0.0f64, |m, &k| m.max(k));
+    rest_speed(sc.sim.noise_q_std, sc.sim.noise_qd_std, kp_max)
+}
+
 /// The run ends once the arm has been at rest this many ticks in a row (after a stop
 /// request, or at the end of its duration).
 pub const REST_TICKS: u64 = 50;

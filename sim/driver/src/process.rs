@@ -156,8 +156,7 @@ pub fn run(
     let mut core = DriverCore::new();
     // The rest test allows for the arm's measurement noise (the scenario's `sim.noise_*`,
     // which the emulator measures with) as the sim's does.
-    let kp_max = sc.tracker.kp.iter().fold(0.0f64, |m, &k| m.max(k));
-    let rest = dkrrt_sim::stop::rest_speed(sc.sim.noise_q_std, sc.sim.noise_qd_std, kp_max);
+    let rest = dkrrt_sim::stop::scenario_rest_speed(sc);
     let mut policy = StopPolicy::new(sc.run.control_hz, sc.ticks()).with_rest_speed(rest);
     let mut msg = <RobotState as Zeroed>::zeroed();
     let mut meas = MeasuredStats::default();
